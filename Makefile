@@ -1,0 +1,26 @@
+# Two commands for a newcomer: `make demo` and `make test` (both set up the venv first).
+PYTHON ?= python3
+VENV   ?= .venv
+BIN     = $(VENV)/bin
+
+.PHONY: setup demo test bench clean
+
+setup: $(VENV)/.installed
+
+$(VENV)/.installed: pyproject.toml setup.py
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $@
+
+demo: setup
+	$(BIN)/gnpp solve examples/planar/p3_occupied.pntc
+
+test: setup
+	$(BIN)/python -m pytest
+
+bench: setup
+	$(BIN)/gnpp bench examples/planar
+
+clean:
+	rm -rf $(VENV) build dist *.egg-info
