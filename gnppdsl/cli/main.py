@@ -1,0 +1,66 @@
+"""`gnpp`: the command-line entry point.
+
+Subcommands live in their own modules (`gnppdsl.cli.<name>`), each with
+`add_arguments(parser)` and `run(args) -> int`, imported lazily so `gnpp check` does not pay
+for casadi/pinocchio imports.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from gnppdsl import __version__
+from gnppdsl.errors import UserError
+
+# name -> (module, one-line help)
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "check": ("gnppdsl.cli.check", "parse, resolve and type-check .pntc files"),
+    "compile": ("gnppdsl.cli.compile_cmd", "compile a problem to SAS+, PDDL, ASP or graph-NLP factors"),
+    "solve": ("gnppdsl.cli.solve_cmd", "solve a problem with the Graph-NLP Planner"),
+    "bench": ("gnppdsl.cli.bench", "run algorithms x problems x seeds and print a table"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gnpp",
+        description="Compile and solve task and motion planning problems written in .pntc.",
+    )
+    parser.add_argument("--version", action="version", version=f"gnpp {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module, help_) in SUBCOMMANDS.items():
+        p = sub.add_parser(name, help=help_, description=help_)
+        try:
+            mod = importlib.import_module(module)
+        except ModuleNotFoundError as exc:
+            if exc.name != module:
+                raise
+            p.set_defaults(_unavailable=name)
+            continue
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    if getattr(args, "_unavailable", None):
+        print(f"gnpp: '{args._unavailable}' is not available in this build", file=sys.stderr)
+        return 2
+    try:
+        return int(args._run(args) or 0)
+    except UserError as err:
+        print(str(err), file=sys.stderr)
+        return err.exit_code
+    except KeyboardInterrupt:
+        print("gnpp: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
