@@ -1,0 +1,230 @@
+"""Database of solved subgraphs (paper 000, Sec. VI-E), in memory and optionally in SQLite.
+
+Why: different plans' graph-NLPs share subgraphs. Before an NLP is solved we ask
+- is it contained in a subgraph already found *feasible*? then it is feasible (Property 4.4);
+- does it contain a subgraph already found *infeasible*? then it is infeasible.
+Both are label-preserving subgraph monomorphisms on semantic graphs (`semantic.py`), decided
+by networkx's VF2 matcher.
+
+Persistence (`--db PATH`): every verdict is one SQLite transaction in WAL mode, so a process
+killed at any instant (crash, Ctrl-C, SIGKILL) leaves the file consistent: either the whole
+record is there or none of it. Records are scoped by the domain name plus a fingerprint (a
+hash of the domain's templates and of the scene data that factor bodies do not contain, chosen
+by the caller), so stale data is never reused after the domain changes. The schema is versioned;
+an unknown version is refused with a clear message instead of being misread.
+"""
+from __future__ import annotations
+
+import json
+import sqlite3
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+from gnppdsl.compile.factors import FactorInstance
+from gnppdsl.conflicts.semantic import SemanticGraph, contains, isomorphic, monomorphism, semantic_graph
+from gnppdsl.errors import UserError
+
+SCHEMA_VERSION = 1
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (
+    key   TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS subgraphs (
+    id          INTEGER PRIMARY KEY,
+    scope       TEXT NOT NULL,      -- domain name
+    fingerprint TEXT NOT NULL,      -- hash of templates + scene geometry
+    feasible    INTEGER NOT NULL,   -- 1 feasible, 0 infeasible
+    wl_hash     TEXT NOT NULL,      -- Weisfeiler-Lehman hash of the semantic graph
+    graph       TEXT NOT NULL,      -- JSON: nodes [[id, label]], edges [[u, v, slots]]
+    conflict    TEXT,               -- JSON: partial states as [[var, value], ...] per step
+    created     REAL NOT NULL
+);
+CREATE INDEX IF NOT EXISTS subgraphs_scope ON subgraphs (scope, fingerprint, feasible);
+"""
+
+Names = tuple[tuple[tuple[str, str], ...], ...]   # partial states by name, one tuple per step
+
+
+@dataclass
+class Entry:
+    graph: SemanticGraph
+    feasible: bool
+    conflict: Names | None = None
+    wl_hash: str = ""
+
+
+@dataclass
+class DatabaseStats:
+    queries: int = 0
+    feasible_hits: int = 0       # NLPs skipped because contained in a known feasible subgraph
+    infeasible_hits: int = 0     # NLPs skipped because they contain a known infeasible subgraph
+    stored: int = 0              # new records this session
+    loaded: int = 0              # records read from the file at open
+
+
+@dataclass
+class SubgraphDatabase:
+    """Feasible and infeasible subgraph-NLPs, keyed by their semantic structure."""
+
+    path: str | Path | None = None
+    scope: str = ""
+    fingerprint: str = ""
+    feasible: list[Entry] = field(default_factory=list)
+    infeasible: list[Entry] = field(default_factory=list)
+    stats: DatabaseStats = field(default_factory=DatabaseStats)
+
+    def __post_init__(self) -> None:
+        self._conn: sqlite3.Connection | None = None
+        if self.path is not None:
+            self._open(Path(self.path))
+
+    # ---- persistence -------------------------------------------------------------------------
+    def _open(self, path: Path) -> None:
+        if path.exists() and path.is_dir():
+            raise UserError(f"{path}: is a directory, expected a database file")
+        if not path.parent.exists():
+            raise UserError(f"{path}: directory {path.parent} does not exist")
+        try:
+            conn = sqlite3.connect(str(path), timeout=30.0)
+            conn.execute("PRAGMA journal_mode=WAL")
+            conn.execute("PRAGMA synchronous=NORMAL")
+            with conn:
+                for stmt in filter(str.strip, _SCHEMA.split(";")):
+                    conn.execute(stmt)
+                row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+                if row is None:
+                    conn.execute("INSERT INTO meta (key, value) VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+            version = row[0] if row is not None else str(SCHEMA_VERSION)
+            if version != str(SCHEMA_VERSION):
+                conn.close()
+                raise UserError(
+                    f"{path}: subgraph database has schema version {version}, this gnpp uses "
+                    f"version {SCHEMA_VERSION}; remove the file or choose another --db path"
+                )
+            rows = conn.execute(
+                "SELECT feasible, wl_hash, graph, conflict FROM subgraphs "
+                "WHERE scope = ? AND fingerprint = ? ORDER BY id",
+                (self.scope, self.fingerprint),
+            ).fetchall()
+        except sqlite3.DatabaseError as exc:
+            raise UserError(f"{path}: not a usable subgraph database ({exc})") from None
+        self._conn = conn
+        for feasible, wl, graph, conflict in rows:
+            entry = Entry(
+                SemanticGraph.from_json(json.loads(graph)),
+                bool(feasible),
+                _names_from_json(conflict),
+                wl,
+            )
+            (self.feasible if entry.feasible else self.infeasible).append(entry)
+        self.stats.loaded = len(rows)
+
+    def _persist(self, entry: Entry) -> None:
+        if self._conn is None:
+            return
+        conflict = json.dumps([[list(f) for f in p] for p in entry.conflict]) if entry.conflict is not None else None
+        with self._conn:   # one transaction per record: all or nothing
+            self._conn.execute(
+                "INSERT INTO subgraphs (scope, fingerprint, feasible, wl_hash, graph, conflict, created) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (self.scope, self.fingerprint, int(entry.feasible), entry.wl_hash,
+                 json.dumps(entry.graph.to_json()), conflict, time.time()),
+            )
+
+    def close(self) -> None:
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+
+    def __enter__(self) -> "SubgraphDatabase":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    # ---- queries -----------------------------------------------------------------------------
+    @staticmethod
+    def graph_of(subgraph: Any) -> SemanticGraph:
+        return subgraph if isinstance(subgraph, SemanticGraph) else semantic_graph(subgraph)
+
+    def known_feasible(self, subgraph: Any) -> bool:
+        sg = self.graph_of(subgraph)
+        return any(contains(e.graph, sg) for e in self.feasible)
+
+    def infeasible_inside(self, subgraph: Any) -> tuple[FactorInstance, ...] | None:
+        """The factors of `subgraph` that form a known infeasible subgraph, or None.
+
+        Mapping them back with `to_partial_states` gives a sound conflict for the *current*
+        task even when the record was learned on another problem of the same domain.
+        """
+        sg = self.graph_of(subgraph)
+        for e in self.infeasible:
+            m = monomorphism(e.graph, sg)
+            if m is not None:
+                return tuple(sg.factor_of[n] for n in m if n in sg.factor_of)
+        return None
+
+    def lookup(self, subgraph: Any) -> bool | None:
+        """True: known feasible; False: known infeasible; None: unknown (solve it)."""
+        sg = self.graph_of(subgraph)
+        self.stats.queries += 1
+        if any(contains(sg, e.graph) for e in self.infeasible):
+            self.stats.infeasible_hits += 1
+            return False
+        if any(contains(e.graph, sg) for e in self.feasible):
+            self.stats.feasible_hits += 1
+            return True
+        return None
+
+    # ---- updates -----------------------------------------------------------------------------
+    def add(self, subgraph: Any, feasible: bool, conflict: Names | None = None) -> bool:
+        """Record a verdict. Returns False when it adds nothing (an equal or stronger record exists).
+
+        Redundant records are not stored: a feasible graph contained in a known feasible one, an
+        infeasible graph containing a known infeasible one.
+        """
+        sg = self.graph_of(subgraph)
+        if sg.graph.number_of_nodes() == 0:
+            return False
+        if feasible:
+            if any(contains(e.graph, sg) for e in self.feasible):
+                return False
+            # keep the in-memory list small: drop records the new one dominates
+            self.feasible = [e for e in self.feasible if not contains(sg, e.graph)]
+        else:
+            if any(contains(sg, e.graph) for e in self.infeasible):
+                return False
+            self.infeasible = [e for e in self.infeasible if not contains(e.graph, sg)]
+        entry = Entry(sg, feasible, conflict, sg.wl_hash())
+        (self.feasible if feasible else self.infeasible).append(entry)
+        self._persist(entry)
+        self.stats.stored += 1
+        return True
+
+    def __len__(self) -> int:
+        return len(self.feasible) + len(self.infeasible)
+
+
+def names_of(task: Any, partial_states: Iterable[Any]) -> Names:
+    """Partial states (SAS indices) -> names, so they survive across tasks with other indices."""
+    out = []
+    for p in partial_states:
+        facts = []
+        for var, val in p.facts:
+            v = task.variables[var]
+            facts.append((v.name, v.values[val]))
+        out.append(tuple(facts))
+    return tuple(out)
+
+
+def _names_from_json(text: str | None) -> Names | None:
+    if text is None:
+        return None
+    return tuple(tuple((str(a), str(b)) for a, b in p) for p in json.loads(text))
+
+
+__all__ = ["SubgraphDatabase", "DatabaseStats", "Entry", "names_of", "SCHEMA_VERSION", "isomorphic"]

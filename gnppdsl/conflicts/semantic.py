@@ -1,0 +1,173 @@
+"""Semantic graphs: the time-free, solver-free identity of a (sub)graph-NLP (paper 000, Sec. VI-E).
+
+Why: graph-NLPs of different plans share subgraphs at different time indices. To reuse a
+feasibility verdict we need a representation of a subgraph that says exactly which NLP it is,
+and nothing about where in time it came from, so that subgraph monomorphism decides containment:
+
+- a *variable vertex* is labelled by its variable index k (`VarInstance.key`, e.g. `pose(b1)`,
+  i.e. kind + objects) and by everything else that enters the NLP for it: space, dimension,
+  waypoints and bounds. The time index is NOT part of the label (paper: "the variable-index k
+  (without considering the time index)"); factor time-invariance (Property 4.2) makes that sound.
+- a *factor vertex* is labelled by its template name plus a hash of its resolved body (the
+  constraint functions after scene constants are folded and `world(o)` is expanded). The paper
+  keys on the template name only; that is unsound in our language because one template yields
+  different functions for different objects or kinematic chains (e.g. `keep_world(o)` with `o` on
+  `s1` or on `s2` folds a different constant), so the body is part of the identity.
+- an *edge* (factor, variable) is labelled by the slot(s) the variable fills in the factor body.
+
+A monomorphism pattern -> target that preserves these labels maps every factor of the pattern to
+a factor of the target computing the same function of correspondingly labelled variables, so the
+pattern's NLP is literally a sub-NLP of the target's: feasible target => feasible pattern, and
+infeasible pattern => infeasible target (Property 4.4).
+
+Vertex ids keep the relative time (`x|pose(b1)|2`) for readability and stable serialisation.
+"""
+from __future__ import annotations
+
+import hashlib
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+import networkx as nx
+from networkx.algorithms import isomorphism
+
+from gnppdsl.compile.factors import FactorInstance, VarInstance
+from gnppdsl.conflicts.mapping import factors_of
+
+_BODY_HASHES: dict[Any, str] = {}
+
+
+def body_hash(body: tuple) -> str:
+    """A stable hash of a resolved factor body (spans excluded: they are repr=False)."""
+    h = _BODY_HASHES.get(body)
+    if h is None:
+        h = hashlib.sha256(repr(body).encode()).hexdigest()[:20]
+        if len(_BODY_HASHES) > 200_000:
+            _BODY_HASHES.clear()
+        _BODY_HASHES[body] = h
+    return h
+
+
+def variable_label(v: VarInstance) -> str:
+    return f"x|{v.key}|{v.space}|{v.dim}|{v.waypoints}|{v.lower}|{v.upper}"
+
+
+def factor_label(f: FactorInstance) -> str:
+    return f"h|{f.template}|{len(f.variables)}|{body_hash(f.body)}"
+
+
+@dataclass
+class SemanticGraph:
+    """A labelled bipartite graph plus the precomputed data that makes matching cheap."""
+
+    graph: nx.Graph
+    labels: Counter = field(default_factory=Counter)
+    n_edges: int = 0
+    # factor vertex id -> the FactorInstance it came from (not persisted; empty after loading)
+    factor_of: dict[str, FactorInstance] = field(default_factory=dict, repr=False)
+
+    @staticmethod
+    def from_graph(graph: nx.Graph) -> "SemanticGraph":
+        labels = Counter(d["label"] for _, d in graph.nodes(data=True))
+        return SemanticGraph(graph, labels, graph.number_of_edges())
+
+    @property
+    def n_factors(self) -> int:
+        return sum(c for lab, c in self.labels.items() if lab.startswith("h|"))
+
+    def wl_hash(self) -> str:
+        """Weisfeiler-Lehman hash: equal for isomorphic graphs (used to find duplicates fast)."""
+        return nx.weisfeiler_lehman_graph_hash(self.graph, node_attr="label", edge_attr="slots")
+
+    def to_json(self) -> dict:
+        return {
+            "nodes": [[n, d["label"]] for n, d in sorted(self.graph.nodes(data=True))],
+            "edges": sorted([sorted([u, v]) + [d["slots"]] for u, v, d in self.graph.edges(data=True)]),
+        }
+
+    @staticmethod
+    def from_json(data: dict) -> "SemanticGraph":
+        g = nx.Graph()
+        for n, label in data["nodes"]:
+            g.add_node(n, label=label)
+        for u, v, slots in data["edges"]:
+            g.add_edge(u, v, slots=slots)
+        return SemanticGraph.from_graph(g)
+
+
+def semantic_graph(subgraph: Any, variables: Iterable[VarInstance] = ()) -> SemanticGraph:
+    """Build the semantic graph of a subgraph-NLP.
+
+    `subgraph` is anything `factors_of` accepts; `variables` adds variable vertices that no
+    factor touches (their bounds still belong to the NLP). If `subgraph` has a `variables`
+    attribute, those are added too.
+    """
+    factors = factors_of(subgraph)
+    extra = list(variables)
+    sub_vars = getattr(subgraph, "variables", None)
+    if sub_vars is not None and not isinstance(subgraph, FactorInstance):
+        if callable(sub_vars):
+            sub_vars = sub_vars()
+        if isinstance(sub_vars, dict):
+            sub_vars = sub_vars.values()
+        extra.extend(v for v in sub_vars if isinstance(v, VarInstance))
+    all_vars = [v for f in factors for v in f.variables] + extra
+    t0 = min((v.step for v in all_vars), default=0)
+
+    def vid(v: VarInstance) -> str:
+        return f"x|{v.key}|{v.step - t0}"
+
+    g = nx.Graph()
+    origin: dict[str, FactorInstance] = {}
+    for v in all_vars:
+        if vid(v) not in g:
+            g.add_node(vid(v), label=variable_label(v))
+    order = sorted(factors, key=lambda f: (f.step, f.template, f.label, tuple(v.name for v in f.variables)))
+    for i, f in enumerate(order):
+        fid = f"h|{f.template}|{f.step - t0}|{i}"
+        g.add_node(fid, label=factor_label(f))
+        origin[fid] = f
+        slots: dict[str, list[int]] = {}
+        for j, v in enumerate(f.variables):
+            slots.setdefault(vid(v), []).append(j)
+        for x, js in slots.items():
+            g.add_edge(fid, x, slots=",".join(map(str, js)))
+    sg = SemanticGraph.from_graph(g)
+    sg.factor_of = origin
+    return sg
+
+
+def _node_match(a: dict, b: dict) -> bool:
+    return a["label"] == b["label"]
+
+
+def _edge_match(a: dict, b: dict) -> bool:
+    return a["slots"] == b["slots"]
+
+
+def monomorphism(pattern: SemanticGraph, target: SemanticGraph) -> dict | None:
+    """A label-preserving subgraph monomorphism pattern -> target (as {target: pattern}), or None.
+
+    Cheap necessary conditions first (label multiset inclusion, sizes), then networkx's VF2
+    GraphMatcher; the discriminating labels keep it in the millisecond range.
+    """
+    if pattern.graph.number_of_nodes() > target.graph.number_of_nodes() or pattern.n_edges > target.n_edges:
+        return None
+    if not pattern.labels <= target.labels:
+        return None
+    gm = isomorphism.GraphMatcher(target.graph, pattern.graph, node_match=_node_match, edge_match=_edge_match)
+    for mapping in gm.subgraph_monomorphisms_iter():
+        return mapping
+    return None
+
+
+def contains(target: SemanticGraph, pattern: SemanticGraph) -> bool:
+    """pattern ⊆ target as NLPs (up to renaming variables and shifting time)."""
+    return monomorphism(pattern, target) is not None
+
+
+def isomorphic(a: SemanticGraph, b: SemanticGraph) -> bool:
+    if a.labels != b.labels or a.n_edges != b.n_edges:
+        return False
+    return nx.is_isomorphic(a.graph, b.graph, node_match=_node_match, edge_match=_edge_match)
