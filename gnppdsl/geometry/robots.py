@@ -1,0 +1,408 @@
+"""Robot models: a `SceneRobot` -> pinocchio model + convex collision geometry + coordinates.
+
+Why this module exists: every other geometry module (casadi forward kinematics, signed
+distance, verification, rendering, IK) needs the same reduced pinocchio model, the same convex
+collision shapes and the same *planner coordinates*. Loading once and caching keeps them
+consistent and cheap.
+
+Planner coordinates vs pinocchio's q: pinocchio stores an unbounded revolute joint as
+(cos, sin) and a planar joint as (x, y, cos, sin). A planner variable `q(r) : joints(r)` is
+nicer as one angle per rotational degree of freedom (no unit-norm constraint needed), so a
+`RobotModel` exposes coordinates of dimension `nc` with `to_pin_q` / `from_pin_q` maps. For
+the bundled arms (Panda, UR) the two coincide (nc == nq).
+"""
+from __future__ import annotations
+
+import functools
+import math
+import os
+import sys
+import sysconfig
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gnppdsl.errors import UserError
+from gnppdsl.ir.scene_model import SceneRobot
+
+# example-robot-data names -> path below `<share>/example-robot-data/robots/` (URDF, SRDF).
+_KNOWN = {
+    "panda": ("panda_description/urdf/panda.urdf", "panda_description/srdf/panda.srdf"),
+    "panda_collision": ("panda_description/urdf/panda_collision.urdf", "panda_description/srdf/panda.srdf"),
+    "ur3": ("ur_description/urdf/ur3_robot.urdf", None),
+    "ur5": ("ur_description/urdf/ur5_robot.urdf", "ur_description/srdf/ur5.srdf"),
+    "ur10": ("ur_description/urdf/ur10_robot.urdf", None),
+    "kinova": ("kinova_description/robots/kinova.urdf", "kinova_description/srdf/kinova.srdf"),
+    "z1": ("z1_description/urdf/z1.urdf", "z1_description/srdf/z1.srdf"),
+    "xarm7": ("xarm_description/urdf/xarm7.urdf", "xarm_description/srdf/xarm7.srdf"),
+    "tiago": ("tiago_description/robots/tiago.urdf", None),
+    "pr2": ("pr2_description/urdf/pr2.urdf", "pr2_description/srdf/pr2.srdf"),
+    "double_pendulum": ("double_pendulum_description/urdf/double_pendulum.urdf", None),
+    "double_pendulum_continuous": ("double_pendulum_description/urdf/double_pendulum_continuous.urdf", None),
+}
+
+_BIG = 1e10   # pinocchio marks "no limit" with +-DBL_MAX
+
+
+def robot_data_share() -> str:
+    """`<site-packages>/cmeel.prefix/share`, where example-robot-data installs its files."""
+    candidates = []
+    try:
+        import pinocchio as pin
+        # .../site-packages/cmeel.prefix/lib/python3.X/site-packages/pinocchio/__init__.py
+        candidates.append(os.path.normpath(os.path.join(os.path.dirname(pin.__file__), "..", "..", "..", "..", "share")))
+    except ImportError:  # pragma: no cover - pinocchio is a hard dependency
+        pass
+    for key in ("purelib", "platlib"):
+        candidates.append(os.path.join(sysconfig.get_paths()[key], "cmeel.prefix", "share"))
+    for p in sys.path:
+        candidates.append(os.path.join(p, "cmeel.prefix", "share"))
+    for c in candidates:
+        if os.path.isdir(os.path.join(c, "example-robot-data", "robots")):
+            return c
+    raise UserError("example-robot-data is not installed (no cmeel.prefix/share/example-robot-data found); "
+                    "install it with `pip install example-robot-data` or give the robot a `urdf:` path")
+
+
+def resolve_model_files(name: str) -> tuple[str, str | None, str]:
+    """An example-robot-data model name -> (urdf path, srdf path or None, package dir)."""
+    share = robot_data_share()
+    root = os.path.join(share, "example-robot-data", "robots")
+    if name in _KNOWN:
+        urdf_rel, srdf_rel = _KNOWN[name]
+        urdf = os.path.join(root, urdf_rel)
+        srdf = os.path.join(root, srdf_rel) if srdf_rel else None
+    else:
+        # Generic lookup: <x>_description/{urdf,robots}/<name>.urdf
+        urdf = srdf = None
+        for d in sorted(os.listdir(root)):
+            for sub in ("urdf", "robots"):
+                p = os.path.join(root, d, sub, name + ".urdf")
+                if os.path.isfile(p):
+                    urdf = p
+                    s = os.path.join(root, d, "srdf", name + ".srdf")
+                    srdf = s if os.path.isfile(s) else None
+                    break
+            if urdf:
+                break
+        if urdf is None:
+            known = ", ".join(sorted(_KNOWN))
+            raise UserError(f"unknown robot model '{name}' (example-robot-data has no {name}.urdf; known: {known})")
+    if not os.path.isfile(urdf):
+        raise UserError(f"robot model '{name}': URDF not found at {urdf}")
+    if srdf is not None and not os.path.isfile(srdf):
+        srdf = None
+    return urdf, srdf, share
+
+
+@dataclass(frozen=True)
+class JointCoord:
+    """How one pinocchio joint maps between planner coordinates and pinocchio's q."""
+
+    name: str
+    kind: str            # "revolute", "revolute_unbounded", "prismatic", "planar", "free", "spherical", "translation"
+    axis: tuple[float, float, float] | None
+    idx_q: int           # first index in pinocchio's q
+    nq: int
+    idx_c: int           # first index in planner coordinates
+    nc: int
+
+
+@dataclass
+class LinkGeometry:
+    """One convex collision shape rigidly attached to a link (body frame)."""
+
+    name: str
+    shape: object                 # coal.ShapeBase (convex)
+    placement: np.ndarray         # 4x4, shape frame in the link frame
+
+
+@dataclass
+class RobotModel:
+    """A loaded robot: reduced pinocchio model, convex collision geometry per link, coordinates."""
+
+    name: str
+    model: object                 # pin.Model (reduced: locked joints removed)
+    geom: object                  # pin.GeometryModel (convex shapes), collision pairs = self-collision pairs
+    base: np.ndarray              # 4x4 world placement of the model root (scene `base`)
+    ee: str | None
+    coords: list[JointCoord]
+    nc: int
+    lower: np.ndarray             # planner-coordinate limits (+-inf where unbounded)
+    upper: np.ndarray
+    links: dict[str, list[LinkGeometry]] = field(default_factory=dict)   # link frame -> shapes
+    self_pairs: list[tuple[str, str]] = field(default_factory=list)       # link pairs checked for self-collision
+    urdf: str = ""
+    srdf: str | None = None
+
+    # -- coordinates ------------------------------------------------------------------------
+    def to_pin_q(self, c) -> np.ndarray:
+        c = np.asarray(c, dtype=float).ravel()
+        if c.size != self.nc:
+            raise ValueError(f"robot {self.name}: expected {self.nc} coordinates, got {c.size}")
+        q = np.zeros(self.model.nq)
+        for j in self.coords:
+            v = c[j.idx_c:j.idx_c + j.nc]
+            if j.kind == "revolute_unbounded":
+                q[j.idx_q:j.idx_q + 2] = (math.cos(v[0]), math.sin(v[0]))
+            elif j.kind == "planar":
+                q[j.idx_q:j.idx_q + 4] = (v[0], v[1], math.cos(v[2]), math.sin(v[2]))
+            else:
+                q[j.idx_q:j.idx_q + j.nq] = v
+        return q
+
+    def from_pin_q(self, q) -> np.ndarray:
+        q = np.asarray(q, dtype=float).ravel()
+        c = np.zeros(self.nc)
+        for j in self.coords:
+            v = q[j.idx_q:j.idx_q + j.nq]
+            if j.kind == "revolute_unbounded":
+                c[j.idx_c] = math.atan2(v[1], v[0])
+            elif j.kind == "planar":
+                c[j.idx_c:j.idx_c + 3] = (v[0], v[1], math.atan2(v[3], v[2]))
+            else:
+                c[j.idx_c:j.idx_c + j.nc] = v
+        return c
+
+    def random_coords(self, rng: np.random.Generator) -> np.ndarray:
+        """Uniform in the limits; unbounded angles in [-pi, pi], unbounded translations in [-1, 1]."""
+        lo = self.lower.copy()
+        hi = self.upper.copy()
+        for j in self.coords:
+            for k in range(j.idx_c, j.idx_c + j.nc):
+                if not np.isfinite(lo[k]) or not np.isfinite(hi[k]):
+                    ang = j.kind in ("revolute_unbounded",) or (j.kind == "planar" and k == j.idx_c + 2)
+                    lo[k], hi[k] = (-math.pi, math.pi) if ang else (-1.0, 1.0)
+        c = rng.uniform(lo, hi)
+        for j in self.coords:   # quaternion coordinates must be unit
+            if j.kind in ("free", "spherical"):
+                s = j.idx_c + (3 if j.kind == "free" else 0)
+                qu = rng.normal(size=4)
+                c[s:s + 4] = qu / np.linalg.norm(qu)
+        return c
+
+    def frame_id(self, frame: str) -> int:
+        if not self.model.existFrame(frame):
+            names = [f.name for f in self.model.frames]
+            import difflib
+            close = difflib.get_close_matches(frame, names, n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise UserError(f"robot {self.name} has no frame '{frame}'{hint}")
+        return self.model.getFrameId(frame)
+
+    def home_coords(self, home: tuple[float, ...] = ()) -> np.ndarray:
+        if home:
+            return np.asarray(home, dtype=float)
+        import pinocchio as pin
+        return self.from_pin_q(pin.neutral(self.model))
+
+
+def se3_to_matrix(pose) -> np.ndarray:
+    """[x, y, z, qx, qy, qz, qw] -> 4x4 homogeneous matrix (quaternion normalised)."""
+    p = np.asarray(pose, dtype=float).ravel()
+    x, y, z, w = p[3:7] / np.linalg.norm(p[3:7])
+    R = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = p[:3]
+    return T
+
+
+def matrix_to_se3(T) -> np.ndarray:
+    """4x4 -> [x, y, z, qx, qy, qz, qw] with qw >= 0."""
+    import pinocchio as pin
+    T = np.asarray(T, dtype=float)
+    v = pin.SE3ToXYZQUAT(pin.SE3(T[:3, :3], T[:3, 3]))
+    v = np.array(v)
+    if v[6] < 0:
+        v[3:] = -v[3:]
+    return v
+
+
+def _coords_of(model) -> tuple[list[JointCoord], int, np.ndarray, np.ndarray]:
+    coords: list[JointCoord] = []
+    lower: list[float] = []
+    upper: list[float] = []
+    idx_c = 0
+    lo_pin = np.array(model.lowerPositionLimit)
+    hi_pin = np.array(model.upperPositionLimit)
+
+    def lim(i):
+        lo, hi = lo_pin[i], hi_pin[i]
+        return (lo if abs(lo) < _BIG else -math.inf, hi if abs(hi) < _BIG else math.inf)
+
+    for jid in range(1, model.njoints):
+        jm = model.joints[jid]
+        short = jm.shortname().replace("JointModel", "")
+        name = model.names[jid]
+        axis = None
+        if short in ("RX", "RY", "RZ"):
+            kind, nc = "revolute", 1
+            axis = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}[short]
+        elif short == "RevoluteUnaligned":
+            kind, nc = "revolute", 1
+            axis = tuple(float(a) for a in jm.extract().axis)
+        elif short in ("RUBX", "RUBY", "RUBZ"):
+            kind, nc = "revolute_unbounded", 1
+            axis = {"RUBX": (1.0, 0.0, 0.0), "RUBY": (0.0, 1.0, 0.0), "RUBZ": (0.0, 0.0, 1.0)}[short]
+        elif short == "RevoluteUnboundedUnaligned":
+            kind, nc = "revolute_unbounded", 1
+            axis = tuple(float(a) for a in jm.extract().axis)
+        elif short in ("PX", "PY", "PZ"):
+            kind, nc = "prismatic", 1
+            axis = {"PX": (1.0, 0.0, 0.0), "PY": (0.0, 1.0, 0.0), "PZ": (0.0, 0.0, 1.0)}[short]
+        elif short == "PrismaticUnaligned":
+            kind, nc = "prismatic", 1
+            axis = tuple(float(a) for a in jm.extract().axis)
+        elif short == "Planar":
+            kind, nc = "planar", 3
+        elif short == "FreeFlyer":
+            kind, nc = "free", 7
+        elif short == "Spherical":
+            kind, nc = "spherical", 4
+        elif short == "Translation":
+            kind, nc = "translation", 3
+        else:
+            raise UserError(f"joint '{name}' has type {jm.shortname()}, which gnppdsl does not support "
+                            "(supported: revolute, continuous, prismatic, planar, floating, spherical)")
+        coords.append(JointCoord(name, kind, axis, jm.idx_q, jm.nq, idx_c, nc))
+        if kind == "revolute_unbounded":
+            lower.append(-math.inf); upper.append(math.inf)
+        elif kind == "planar":
+            for k in range(2):
+                lo, hi = lim(jm.idx_q + k); lower.append(lo); upper.append(hi)
+            lower.append(-math.inf); upper.append(math.inf)
+        elif kind in ("free", "spherical"):
+            for k in range(nc):
+                lo, hi = lim(jm.idx_q + k)
+                if kind == "free" and k >= 3 or kind == "spherical":
+                    lo, hi = -1.0, 1.0
+                lower.append(lo); upper.append(hi)
+        else:
+            for k in range(nc):
+                lo, hi = lim(jm.idx_q + k); lower.append(lo); upper.append(hi)
+        idx_c += nc
+    return coords, idx_c, np.array(lower), np.array(upper)
+
+
+def _convexify(geometry, name: str):
+    """A coal collision geometry -> a convex coal shape (meshes: convex hull of the vertices)."""
+    import coal
+    if isinstance(geometry, coal.BVHModelBase):
+        verts = np.array(geometry.vertices())
+        return convex_from_points(verts, name)
+    return geometry
+
+
+def convex_from_points(points: np.ndarray, what: str = "mesh"):
+    """coal.Convex hull of a point cloud (coal computes the hull; trimesh would need scipy)."""
+    import coal
+    pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3))
+    if pts.shape[0] < 4:
+        raise UserError(f"{what}: a convex shape needs at least 4 vertices, got {pts.shape[0]}")
+    vec = coal.StdVec_Vec3s()
+    for row in pts:
+        vec.append(row)
+    return coal.Convex.convexHull(vec, False, None)
+
+
+def _srdf_pairs(geom, model, srdf: str | None) -> None:
+    import pinocchio as pin
+    geom.addAllCollisionPairs()
+    if srdf:
+        pin.removeCollisionPairs(model, geom, srdf)
+
+
+def _parse_base(base) -> np.ndarray:
+    return se3_to_matrix(base)
+
+
+@functools.lru_cache(maxsize=64)
+def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_items, base_joint) -> RobotModel:
+    import pinocchio as pin
+    pkg = list(package_dirs)
+    if model_name:
+        urdf_m, srdf_m, share = resolve_model_files(model_name)
+        urdf = urdf or urdf_m
+        srdf = srdf or srdf_m
+        pkg.append(share)
+    if not urdf:
+        raise UserError(f"robot {name}: give either `model:` (example-robot-data name) or `urdf:`")
+    if not os.path.isfile(urdf):
+        raise UserError(f"robot {name}: URDF file not found: {urdf}")
+    if not pkg:
+        pkg.append(os.path.dirname(urdf))
+        try:
+            pkg.append(robot_data_share())
+        except UserError:
+            pass
+    root_joint = {"planar": pin.JointModelPlanar(), "free": pin.JointModelFreeFlyer(),
+                  "fixed": None, None: None}.get(base_joint, "bad")
+    if root_joint == "bad":
+        raise UserError(f"robot {name}: base_joint must be 'fixed', 'planar' or 'free', not '{base_joint}'")
+    try:
+        full = pin.buildModelFromUrdf(urdf, root_joint) if root_joint is not None else pin.buildModelFromUrdf(urdf)
+        geom_full = pin.buildGeomFromUrdf(full, urdf, pin.GeometryType.COLLISION, package_dirs=pkg)
+    except Exception as e:  # pinocchio raises ValueError / RuntimeError with its own text
+        raise UserError(f"robot {name}: cannot load URDF {urdf}: {e}") from None
+    locked = dict(locked_items)
+    if model_name and model_name.startswith("panda") and not locked:
+        # Planning uses the arm; the fingers are fixed (open) unless the scene says otherwise.
+        locked = {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
+    q_ref = pin.neutral(full)
+    lock_ids = []
+    for jname, val in locked.items():
+        if not full.existJointName(jname):
+            raise UserError(f"robot {name}: cannot lock unknown joint '{jname}'")
+        jid = full.getJointId(jname)
+        jm = full.joints[jid]
+        if jm.nq != 1:
+            raise UserError(f"robot {name}: can only lock 1-DOF joints, '{jname}' has nq={jm.nq}")
+        q_ref[jm.idx_q] = float(val)
+        lock_ids.append(jid)
+    if lock_ids:
+        model, geom = pin.buildReducedModel(full, geom_full, lock_ids, q_ref)
+    else:
+        model, geom = full, geom_full
+    # Make every collision shape convex (BVH meshes give no usable gradient in coal).
+    for go in geom.geometryObjects:
+        go.geometry = _convexify(go.geometry, f"{name}/{go.name}")
+    _srdf_pairs(geom, model, srdf)
+    coords, nc, lower, upper = _coords_of(model)
+    links: dict[str, list[LinkGeometry]] = {}
+    for go in geom.geometryObjects:
+        fr = model.frames[go.parentFrame]
+        # go.placement is relative to the parent joint; express the shape in the link (body) frame.
+        local = fr.placement.inverse() * go.placement
+        links.setdefault(fr.name, []).append(LinkGeometry(go.name, go.geometry, np.array(local.homogeneous)))
+    self_pairs = set()
+    for cp in geom.collisionPairs:
+        a = model.frames[geom.geometryObjects[cp.first].parentFrame].name
+        b = model.frames[geom.geometryObjects[cp.second].parentFrame].name
+        if a != b:
+            self_pairs.add(tuple(sorted((a, b))))
+    if ee is not None and not model.existFrame(ee):
+        import difflib
+        close = difflib.get_close_matches(ee, [f.name for f in model.frames], n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise UserError(f"robot {name}: end-effector frame '{ee}' not in the model{hint}")
+    return RobotModel(name=name, model=model, geom=geom, base=_parse_base(base), ee=ee, coords=coords, nc=nc,
+                      lower=lower, upper=upper, links=links, self_pairs=sorted(self_pairs), urdf=urdf, srdf=srdf)
+
+
+def load_robot(spec: SceneRobot) -> RobotModel:
+    """Load (cached) the pinocchio model of a scene robot of kind "urdf".
+
+    `spec.locked` joints are removed with `pin.buildReducedModel`; a Panda without `locked`
+    gets its fingers locked open (0.04) so that `joints(r)` is the 7-DOF arm.
+    `spec.attributes["base_joint"]` = "planar" adds a planar root joint (mobile base, coordinates
+    x, y, theta first), "free" a floating base.
+    """
+    if spec.kind != "urdf":
+        raise UserError(f"robot {spec.name}: load_robot handles URDF robots, not kind '{spec.kind}'")
+    return _load_cached(spec.name, spec.model, spec.urdf, spec.srdf, tuple(spec.package_dirs), tuple(spec.base),
+                        spec.ee, tuple(sorted(spec.locked.items())), spec.attributes.get("base_joint"))
