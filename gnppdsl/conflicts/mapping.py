@@ -22,13 +22,17 @@ from gnppdsl.compile.sas import PartialState
 def factors_of(subgraph: Any) -> tuple[FactorInstance, ...]:
     """The factor instances of a subgraph given in one of the shapes the layers use.
 
-    Accepted: an iterable of `FactorInstance`; an object with a `factors` attribute (a
-    `GraphNLP` or a subgraph view of one), which may be a sequence or a callable; a networkx
+    Accepted: an iterable of `FactorInstance`; a `GraphNLP` (its `factor_instances`); an object
+    with a `factors` attribute (a sequence or a callable); a networkx
     graph whose factor vertices carry the instance in the node attribute ``factor``.
     """
     if isinstance(subgraph, FactorInstance):
         return (subgraph,)
-    factors = getattr(subgraph, "factors", None)
+    # `GraphNLP.factors` is the factor list of the *full* graph shared by all its subgraphs;
+    # `factor_instances` are the factors present in this (sub)graph.
+    factors = getattr(subgraph, "factor_instances", None)
+    if factors is None:
+        factors = getattr(subgraph, "factors", None)
     if factors is not None:
         if callable(factors):
             factors = factors()

@@ -1,0 +1,174 @@
+"""What a solve returns: plan, states, continuous values, trajectories, conflicts, statistics.
+
+Why dataclasses of plain values (strings, floats, lists): the result is printed by the CLI,
+written as JSON (`--json FILE`), aggregated by `gnpp bench`, and re-checked by tests; none of
+them should need the compiler's objects. Conflicts are kept both as SAS+ partial states (for
+tests that re-solve them) and in DSL syntax (for people).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from gnppdsl.compile.sas import PartialState
+
+# Why a solve ended. Only SOLVED carries a plan with continuous values.
+SOLVED = "solved"
+NO_PLAN = "no_plan"                 # the logic planner proved no (further) plan exists up to the horizon
+TIME_LIMIT = "time_limit"
+SOLVER_FAILURE = "solver_failure"   # a plan's graph-NLP was feasible in every check but the full solve failed
+STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE)
+
+
+@dataclass
+class Conflict:
+    """An infeasible subgraph mapped back to partial states <p_0 ... p_L> (paper Sec. VII)."""
+
+    partial_states: tuple[PartialState, ...]
+    text: str                        # DSL syntax: `{parent(b1) = s1} -> {parent(b1) = g}`
+    factors: tuple[str, ...]         # labels of the infeasible subgraph's factors
+    source: str                      # "nlp" (Alg. 1), "database" (known infeasible), "plan" (One-way)
+    relaxation: str = ""             # the relaxation in which it was found ("" = full graph)
+    plan_index: int = 0              # which candidate plan produced it (1-based)
+    at_step: int = 0                 # absolute step of p_0 in that plan
+
+    def to_json(self) -> dict:
+        return {
+            "text": self.text,
+            "length": len(self.partial_states),
+            "partial_states": [[list(f) for f in p.facts] for p in self.partial_states],
+            "factors": list(self.factors),
+            "source": self.source,
+            "relaxation": self.relaxation,
+            "plan_index": self.plan_index,
+            "at_step": self.at_step,
+        }
+
+
+@dataclass
+class Step:
+    """One symbolic state s_i with its continuous values x_i (and the trajectory to s_{i+1})."""
+
+    index: int
+    action: str | None                        # the action that led here (None for s_0)
+    state: str                                # s_i in DSL syntax
+    values: dict[str, list[float]] = field(default_factory=dict)          # key -> x_i^k
+    trajectories: dict[str, list[list[float]]] = field(default_factory=dict)  # key -> waypoints
+
+
+@dataclass
+class Stats:
+    nlp_solves: int = 0               # NLPs handed to the solver (database hits not counted)
+    nlp_time: float = 0.0             # seconds inside the NLP solver
+    logic_time: float = 0.0           # seconds in the logic planner (incl. adding conflicts)
+    factory_time: float = 0.0         # seconds building graph-NLPs
+    total_time: float = 0.0
+    plans: int = 0                    # candidate logic plans evaluated
+    conflicts: int = 0
+    db_feasible_hits: int = 0
+    db_infeasible_hits: int = 0
+    N0: int | None = None             # length of the first logical plan
+    N: int | None = None              # length of the returned solution
+    max_violation: float | None = None   # independent re-check of every factor at the solution
+    factors: int = 0                  # factors in the solution's graph-NLP
+    variables: int = 0
+
+
+@dataclass
+class Result:
+    problem: str
+    domain: str
+    algorithm: str                    # "gnpp" or "oneway"
+    switches: str                     # subset of "trng" ("" for oneway)
+    seed: int
+    status: str
+    message: str = ""
+    plan: list[str] = field(default_factory=list)
+    steps: list[Step] = field(default_factory=list)
+    conflicts: list[Conflict] = field(default_factory=list)
+    stats: Stats = field(default_factory=Stats)
+    time_limit: float | None = None
+    # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
+    extras: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def solved(self) -> bool:
+        return self.status == SOLVED
+
+    @property
+    def algorithm_name(self) -> str:
+        return "One-way" if self.algorithm == "oneway" else f"GNPP_{self.switches}" if self.switches else "GNPP"
+
+    # ---- output ------------------------------------------------------------------------------
+    def to_json(self) -> dict:
+        return {
+            "problem": self.problem,
+            "domain": self.domain,
+            "algorithm": self.algorithm,
+            "algorithm_name": self.algorithm_name,
+            "switches": self.switches,
+            "seed": self.seed,
+            "status": self.status,
+            "solved": self.solved,
+            "message": self.message,
+            "time_limit": self.time_limit,
+            "plan": list(self.plan),
+            "steps": [asdict(s) for s in self.steps],
+            "conflicts": [c.to_json() for c in self.conflicts],
+            "stats": _finite(asdict(self.stats)),
+        }
+
+    def write_json(self, path: str | Path) -> None:
+        """Write atomically (temp file + rename) so a reader never sees half a file."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(json.dumps(self.to_json(), indent=2) + "\n")
+        tmp.replace(path)
+
+    def summary(self, max_conflicts: int = 20) -> str:
+        s = self.stats
+        lines = [f"{self.problem} ({self.domain}) with {self.algorithm_name}, seed {self.seed}: "
+                 + ("SOLVED" if self.solved else f"NOT SOLVED ({self.status})")]
+        if self.message:
+            lines.append(f"  {self.message}")
+        if self.solved:
+            lines.append(f"plan ({len(self.plan)} actions):")
+            for st in self.steps:
+                head = f"  s{st.index}" + (f"  <- {st.action}" if st.action else "  (initial)")
+                lines.append(head)
+                lines.append(f"      {st.state}")
+                for key, val in st.values.items():
+                    lines.append(f"      {key} = [{', '.join(f'{x:.4g}' for x in val)}]")
+                for key, pts in st.trajectories.items():
+                    lines.append(f"      {key}: {len(pts)} waypoints to s{st.index + 1}")
+        if self.conflicts:
+            lines.append(f"conflicts ({len(self.conflicts)}):")
+            for c in self.conflicts[:max_conflicts]:
+                where = f" [{c.relaxation}]" if c.relaxation else ""
+                lines.append(f"  #{c.plan_index} {c.source}{where}: {c.text}")
+            if len(self.conflicts) > max_conflicts:
+                lines.append(f"  ... {len(self.conflicts) - max_conflicts} more (see --json)")
+        lines.append(
+            f"stats: NLPs {s.nlp_solves} ({s.nlp_time:.2f} s), logic {s.logic_time:.2f} s, "
+            f"factory {s.factory_time:.2f} s, plans {s.plans}, conflicts {s.conflicts}, "
+            f"N0 {_opt(s.N0)}, N {_opt(s.N)}, total {s.total_time:.2f} s"
+        )
+        if s.db_feasible_hits or s.db_infeasible_hits:
+            lines.append(f"database: {s.db_feasible_hits} feasible and {s.db_infeasible_hits} "
+                         f"infeasible hits (NLPs skipped)")
+        if s.max_violation is not None:
+            lines.append(f"independent re-check: max violation {s.max_violation:.2e} over "
+                         f"{s.factors} factors, {s.variables} variables")
+        return "\n".join(lines)
+
+
+def _opt(x: Any) -> str:
+    return "-" if x is None else str(x)
+
+
+def _finite(d: dict) -> dict:
+    """JSON has no inf/nan: write them as strings."""
+    return {k: (str(v) if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
