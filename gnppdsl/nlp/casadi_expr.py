@@ -1,0 +1,428 @@
+"""Resolved (stage-2) factor bodies -> casadi Functions, one per body structure.
+
+Why one Function per *structure*: a graph-NLP holds many instances of few templates (paper 000,
+Sec. VIII: fewer than 20 constraint types). Numeric constants that only scale values (radii,
+tolerances, fixed poses) are lifted into a parameter vector `p`, so e.g. every `no_overlap`
+instance shares one compiled Function and differs only in `p`. Constants that change the
+*shape* of the computation stay in the cache key: exponents of `pow`, waypoint and axis
+indices, `Index` positions, object and frame names of geometry primitives, and the slot
+signatures (dimension, waypoints) of the factor's variables.
+
+A compiled body is `f(x_0, ..., x_{m-1}, p) -> h`, `h` the stacked constraint rows, each row
+of kind "eq" (h = 0) or "ineq" (h <= 0). `lhs == rhs` gives rows lhs - rhs (eq), `lhs <= rhs`
+rows lhs - rhs (ineq) and `lhs >= rhs` rows rhs - lhs (ineq).
+
+Functions are built from SX (fully expanded, fastest) unless the injected geometry says a used
+primitive needs MX (a `casadi.Callback`); either kind can be called on MX symbols during
+assembly (`gnppdsl.nlp.feasibility`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+
+from gnppdsl.compile.factors import FactorInstance, VarInstance
+from gnppdsl.errors import UserError
+from gnppdsl.ir.builtins import BUILTINS
+from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
+from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Body, Geometry
+
+NORM_EPS = 1e-18
+"""Added under the square root of `norm` so its gradient exists at 0 (value bias <= 1e-9)."""
+
+
+class BodyError(UserError):
+    """A resolved body the nlp layer cannot turn into casadi (wrong arity, bad constant...)."""
+
+    def __init__(self, message: str, node: Any = None):
+        span = getattr(node, "span", None)
+        super().__init__(f"{span}: {message}" if span is not None else message)
+
+
+@dataclass(frozen=True)
+class _Param:
+    """Placeholder for the k-th lifted numeric constant (cache keys only)."""
+
+    index: int
+
+
+@dataclass(frozen=True)
+class SlotSignature:
+    dim: int
+    waypoints: int
+
+    @staticmethod
+    def of(v: VarInstance) -> "SlotSignature":
+        return SlotSignature(v.dim, v.waypoints)
+
+    @property
+    def point_dim(self) -> int:
+        return self.dim // self.waypoints if self.waypoints else self.dim
+
+
+@dataclass(frozen=True)
+class CompiledBody:
+    """One casadi Function for a body structure, with the kind of each output row."""
+
+    function: ca.Function
+    kinds: tuple[str, ...]          # "eq" | "ineq", one per row of h
+    n_params: int
+    symbolic: str                   # "SX" | "MX"
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.kinds)
+
+
+# Argument positions whose constant must stay structural (not lifted): fn -> arg indices.
+_STATIC_ARGS: dict[str, tuple[int, ...]] = {
+    "pow": (1,), "waypoint": (1,), "axis_se3": (1,), "quat_axis": (1,),
+}
+
+
+def static_value(e: Any) -> float:
+    """Fold a constant expression (Num, arithmetic on Nums) to a float, e.g. `k + 1`."""
+    if isinstance(e, Num):
+        return float(e.value)
+    if isinstance(e, Call) and e.fn in ("add", "sub", "mul", "div", "neg"):
+        a = [static_value(x) for x in e.args]
+        if e.fn == "neg":
+            return -a[0]
+        return {"add": a[0] + a[1], "sub": a[0] - a[1], "mul": a[0] * a[1],
+                "div": a[0] / a[1]}[e.fn]
+    raise BodyError(f"expected a constant here, got {e!r}", e)
+
+
+def static_int(e: Any) -> int:
+    v = static_value(e)
+    if v != int(v):
+        raise BodyError(f"expected an integer constant, got {v}", e)
+    return int(v)
+
+
+def lift_constants(body: tuple[Constraint, ...]) -> tuple[tuple, list[float]]:
+    """Replace value constants by `_Param(k)`; return (structural key body, parameter values)."""
+    params: list[float] = []
+
+    def walk(e: Any, static: bool = False) -> Any:
+        if static:
+            return e
+        if isinstance(e, Num):
+            params.append(float(e.value))
+            return _Param(len(params) - 1)
+        if isinstance(e, Vec):
+            return Vec(tuple(walk(x) for x in e.items))
+        if isinstance(e, Call):
+            st = _STATIC_ARGS.get(e.fn, ())
+            return Call(e.fn, tuple(walk(a, i in st) for i, a in enumerate(e.args)))
+        if isinstance(e, Index):
+            return Index(walk(e.base), e.index, e.stop)
+        if isinstance(e, Constraint):
+            return Constraint(walk(e.lhs), e.op, walk(e.rhs))
+        return e   # Slot, Obj, Str
+
+    key = tuple(walk(c) for c in body)
+    return key, params
+
+
+# ---------------------------------------------------------------------------------------------
+# casadi implementations of the builtins. Every value is a casadi column vector (scalars 1x1).
+
+
+def _rotmat_quat(q):
+    """Rotation matrix of a unit quaternion [qx, qy, qz, qw]."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    return ca.vertcat(
+        ca.horzcat(1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+        ca.horzcat(2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
+        ca.horzcat(2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)),
+    )
+
+
+def quat_mul(a, b):
+    va, wa, vb, wb = a[0:3], a[3], b[0:3], b[3]
+    return ca.vertcat(wa * vb + wb * va + ca.cross(va, vb), wa * wb - ca.dot(va, vb))
+
+
+def quat_conj(q):
+    return ca.vertcat(-q[0], -q[1], -q[2], q[3])
+
+
+def quat_rotate(q, v):
+    u, w = q[0:3], q[3]
+    t = 2 * ca.cross(u, v)
+    return v + w * t + ca.cross(u, t)
+
+
+def compose_se2(a, b):
+    c, s = ca.cos(a[2]), ca.sin(a[2])
+    return ca.vertcat(a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2])
+
+
+def inv_se2(a):
+    c, s = ca.cos(a[2]), ca.sin(a[2])
+    return ca.vertcat(-(c * a[0] + s * a[1]), -(-s * a[0] + c * a[1]), -a[2])
+
+
+def apply_se2(a, p):
+    c, s = ca.cos(a[2]), ca.sin(a[2])
+    return ca.vertcat(a[0] + c * p[0] - s * p[1], a[1] + s * p[0] + c * p[1])
+
+
+def compose_se3(a, b):
+    return ca.vertcat(a[0:3] + quat_rotate(a[3:7], b[0:3]), quat_mul(a[3:7], b[3:7]))
+
+
+def inv_se3(a):
+    qi = quat_conj(a[3:7])
+    return ca.vertcat(-quat_rotate(qi, a[0:3]), qi)
+
+
+_SIMPLE: dict[str, Callable] = {
+    "add": lambda a, b: a + b,
+    "sub": lambda a, b: a - b,
+    "mul": lambda a, b: a * b,
+    "div": lambda a, b: a / b,
+    "neg": lambda a: -a,
+    "sqrt": ca.sqrt,
+    "sin": ca.sin,
+    "cos": ca.cos,
+    "atan2": ca.atan2,
+    "abs": ca.fabs,
+    "exp": ca.exp,
+    "min": ca.fmin,
+    "max": ca.fmax,
+    "norm": lambda v: ca.sqrt(ca.sumsqr(v) + NORM_EPS),
+    "sqnorm": ca.sumsqr,
+    "dot": ca.dot,
+    "cross": ca.cross,
+    "sum": ca.sum1,
+    "concat": lambda *xs: ca.vertcat(*xs),
+    "se2": lambda x, y, t: ca.vertcat(x, y, t),
+    "compose_se2": compose_se2,
+    "inv_se2": inv_se2,
+    "pos_se2": lambda a: a[0:2],
+    "angle_se2": lambda a: a[2],
+    "apply_se2": apply_se2,
+    "angle_diff": lambda a, b: ca.atan2(ca.sin(a - b), ca.cos(a - b)),
+    "se3": lambda p, q: ca.vertcat(p, q),
+    "compose_se3": compose_se3,
+    "inv_se3": inv_se3,
+    "pos_se3": lambda a: a[0:3],
+    "rot_se3": lambda a: a[3:7],
+    "apply_se3": lambda a, p: a[0:3] + quat_rotate(a[3:7], p),
+    "quat_mul": quat_mul,
+    "quat_conj": quat_conj,
+    "quat_rotate": quat_rotate,
+    "quat_dist": lambda a, b: 1 - ca.dot(a, b) ** 2,
+}
+"""Builtins whose arguments are all values (no structural constant, no geometry)."""
+
+# Builtins handled in `_Builder.call` because they take a structural constant or a body.
+_SPECIAL = {"pow", "waypoint", "axis_se3", "quat_axis", "link", *GEOMETRY_PRIMITIVES}
+
+IMPLEMENTED = frozenset(_SIMPLE) | _SPECIAL
+"""Names implemented here (a test checks it equals `BUILTINS`)."""
+
+
+def _check_size(name: str, value, n: int, node) -> None:
+    if value.numel() != n:
+        raise BodyError(f"{name}: expected a vector of length {n}, got {value.numel()}", node)
+
+
+_ARG_SIZES: dict[str, tuple[int | None, ...]] = {
+    "cross": (3, 3), "se2": (1, 1, 1), "compose_se2": (3, 3), "inv_se2": (3,),
+    "pos_se2": (3,), "angle_se2": (3,), "apply_se2": (3, 2), "angle_diff": (1, 1),
+    "se3": (3, 4), "compose_se3": (7, 7), "inv_se3": (7,), "pos_se3": (7,), "rot_se3": (7,),
+    "apply_se3": (7, 3), "quat_mul": (4, 4), "quat_conj": (4,), "quat_rotate": (4, 3),
+    "quat_dist": (4, 4), "atan2": (1, 1),
+}
+
+
+class _Builder:
+    """Builds the casadi expression of one body from slot and parameter symbols."""
+
+    def __init__(self, slots: list, sigs: tuple[SlotSignature, ...], p, geometry: Geometry | None):
+        self.slots, self.sigs, self.p, self.geometry = slots, sigs, p, geometry
+
+    def expr(self, e: Any):
+        if isinstance(e, _Param):
+            return self.p[e.index]
+        if isinstance(e, Num):
+            return ca.DM(float(e.value))
+        if isinstance(e, Slot):
+            if not 0 <= e.index < len(self.slots):
+                raise BodyError(f"Slot({e.index}) out of range ({len(self.slots)} variables)", e)
+            return self.slots[e.index]
+        if isinstance(e, Vec):
+            return ca.vertcat(*[self.expr(x) for x in e.items])
+        if isinstance(e, Index):
+            return self.index(e)
+        if isinstance(e, Call):
+            return self.call(e)
+        if isinstance(e, (Obj, Str)):
+            raise BodyError(f"{e!r} is not a numeric value (only geometry primitives take "
+                            "object or string arguments)", e)
+        raise BodyError(f"unexpected node in a resolved body: {e!r}", e)
+
+    def _traj_point(self, e: Any, k: int, node):
+        """Waypoint k of trajectory slot `e` (negative k counts from the end)."""
+        if not isinstance(e, Slot) or not self.sigs[e.index].waypoints:
+            raise BodyError("waypoint/index on a non-trajectory value", node)
+        sig = self.sigs[e.index]
+        if not -sig.waypoints <= k < sig.waypoints:
+            raise BodyError(f"waypoint {k} out of range ({sig.waypoints} waypoints)", node)
+        k %= sig.waypoints
+        d = sig.point_dim
+        return self.slots[e.index][k * d:(k + 1) * d]
+
+    def index(self, e: Index):
+        i = static_int(e.index)
+        if isinstance(e.base, Slot) and self.sigs[e.base.index].waypoints and e.stop is None:
+            return self._traj_point(e.base, i, e)
+        base = self.expr(e.base)
+        n = base.numel()
+        if e.stop is None:
+            if not -n <= i < n:
+                raise BodyError(f"index {i} out of range for a vector of length {n}", e)
+            return base[i % n]
+        j = static_int(e.stop)
+        i, j = (i % n if i < 0 else i), (j % n if j < 0 else j)
+        if not 0 <= i < j <= n:
+            raise BodyError(f"slice {i}:{j} out of range for a vector of length {n}", e)
+        return base[i:j]
+
+    def body(self, e: Any) -> Body:
+        if isinstance(e, Obj):
+            return Body(e.name)
+        if isinstance(e, Call) and e.fn == "link":
+            if len(e.args) != 2 or not isinstance(e.args[0], Obj) or not isinstance(e.args[1], Str):
+                raise BodyError("link expects (robot object, link name string)", e)
+            return Body(e.args[0].name, link=e.args[1].value)
+        raise BodyError(f"expected a collision body (object or link(...)), got {e!r}", e)
+
+    def call(self, e: Call):
+        b = BUILTINS.get(e.fn)
+        if b is None:
+            raise BodyError(f"unknown builtin {e.fn!r} in a resolved body", e)
+        if b.arity >= 0 and len(e.args) != b.arity:
+            raise BodyError(f"{e.fn} expects {b.arity} arguments, got {len(e.args)}", e)
+        fn = e.fn
+        if fn in _SIMPLE:
+            args = [self.expr(a) for a in e.args]
+            for a, n in zip(args, _ARG_SIZES.get(fn, ())):
+                if n is not None:
+                    _check_size(fn, a, n, e)
+            if fn in ("add", "sub", "mul", "div", "min", "max", "dot"):
+                na, nb = args[0].numel(), args[1].numel()
+                if na != nb and 1 not in (na, nb) or (fn == "dot" and na != nb):
+                    raise BodyError(f"{fn}: incompatible lengths {na} and {nb}", e)
+            return _SIMPLE[fn](*args)
+        if fn == "pow":
+            return self.expr(e.args[0]) ** static_value(e.args[1])
+        if fn == "waypoint":
+            return self._traj_point(e.args[0], static_int(e.args[1]), e)
+        if fn in ("axis_se3", "quat_axis"):
+            v = self.expr(e.args[0])
+            i = static_int(e.args[1])
+            if not 0 <= i <= 2:
+                raise BodyError(f"{fn}: axis index must be 0, 1 or 2, got {i}", e)
+            q = v[3:7] if fn == "axis_se3" else v
+            _check_size(fn, v, 7 if fn == "axis_se3" else 4, e)
+            return _rotmat_quat(q)[:, i]
+        if fn == "link":
+            raise BodyError("link(...) is only allowed as an argument of sdist/sdist2", e)
+        # geometry primitives
+        g = self.geometry
+        if g is None:
+            raise BodyError(f"{fn} needs a geometry implementation, none was given", e)
+        if fn == "fk":
+            robot, q, frame, base = e.args
+            if not isinstance(robot, Obj) or not isinstance(frame, Str):
+                raise BodyError("fk expects (robot object, joints, frame string, base pose)", e)
+            return g.fk(robot.name, self.expr(q), frame.value, self.expr(base))
+        ba, pa, bb, pb = e.args
+        prim = g.sdist if fn == "sdist" else g.sdist2
+        n = 7 if fn == "sdist" else 3
+        xa, xb = self.expr(pa), self.expr(pb)
+        _check_size(fn, xa, n, e)
+        _check_size(fn, xb, n, e)
+        return prim(self.body(ba), xa, self.body(bb), xb)
+
+
+def _uses(e: Any, names: set[str]) -> set[str]:
+    found: set[str] = set()
+
+    def walk(x: Any) -> None:
+        if isinstance(x, Call):
+            if x.fn in names:
+                found.add(x.fn)
+            for a in x.args:
+                walk(a)
+        elif isinstance(x, Vec):
+            for a in x.items:
+                walk(a)
+        elif isinstance(x, Index):
+            walk(x.base)
+        elif isinstance(x, Constraint):
+            walk(x.lhs)
+            walk(x.rhs)
+
+    for c in e:
+        walk(c)
+    return found
+
+
+class BodyCompiler:
+    """Compiles factor bodies to casadi Functions, cached by (template, structure).
+
+    Why a class: it owns the cache and the injected geometry, and lives as long as a solve loop
+    so that every template is compiled once across all the graph-NLPs of the loop."""
+
+    def __init__(self, geometry: Geometry | None = None):
+        self.geometry = geometry
+        self._cache: dict[tuple, CompiledBody] = {}
+        self.compiled = 0           # number of distinct Functions built (for stats / tests)
+
+    def compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
+        """(compiled body, parameter values) for one factor instance."""
+        key_body, params = lift_constants(factor.body)
+        sigs = tuple(SlotSignature.of(v) for v in factor.variables)
+        key = (factor.template, key_body, sigs)
+        cb = self._cache.get(key)
+        if cb is None:
+            try:
+                cb = self._build(factor.template, key_body, sigs, len(params))
+            except BodyError as err:
+                raise BodyError(f"{factor.label}: {err}") from None
+            self._cache[key] = cb
+            self.compiled += 1
+        return cb, np.asarray(params, dtype=float)
+
+    def _build(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...],
+               n_params: int) -> CompiledBody:
+        prims = _uses(body, set(GEOMETRY_PRIMITIVES))
+        mx = self.geometry is not None and any(self.geometry.needs_mx(p) for p in prims)
+        S = ca.MX if mx else ca.SX
+        slots = [S.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
+        p = S.sym("p", n_params)
+        builder = _Builder(slots, sigs, p, self.geometry)
+        rows, kinds = [], []
+        for c in body:
+            if not isinstance(c, Constraint) or c.op not in ("==", "<=", ">="):
+                raise BodyError(f"expected a constraint lhs op rhs, got {c!r}", c)
+            lhs, rhs = builder.expr(c.lhs), builder.expr(c.rhs)
+            nl, nr = lhs.numel(), rhs.numel()
+            if nl != nr and 1 not in (nl, nr):
+                raise BodyError(f"constraint sides have lengths {nl} and {nr}", c)
+            h = lhs - rhs if c.op != ">=" else rhs - lhs
+            h = ca.vec(h)
+            rows.append(h)
+            kinds += ["eq" if c.op == "==" else "ineq"] * h.numel()
+        out = ca.vertcat(*rows) if rows else S(0, 1)
+        fname = "h_" + "".join(ch if ch.isalnum() else "_" for ch in name)
+        f = ca.Function(fname, [*slots, p], [out])
+        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX")

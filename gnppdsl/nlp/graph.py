@@ -1,0 +1,195 @@
+"""The graph-NLP G(<s_0 ... s_n>) as a networkx bipartite graph (paper 000, Sec. IV).
+
+Vertices: variable vertices x_i^k keyed by their `VarInstance`, and factor vertices keyed by
+`FactorRef(index)` (the factor's position in the factory's list, shared by every subgraph so
+that vertices of a subgraph are vertices of the full graph). Edges connect a factor to the
+variables it depends on, labelled with the slot position(s).
+
+Every subgraph operation returns a new `GraphNLP` over the same factor list: Definition 4.2
+(`subgraph`), relaxations that delete tagged variables and constraints (`apply_relaxation`),
+connected components (Property 4.5) and time slices G(<s_f ... s_l>) (Sec. VI-A).
+
+Semantic vertex attributes for subgraph matching (Sec. VI-E, used by `gnppdsl.conflicts`):
+`label` is the variable key k without time (`pose(b1)`) or the template name, `kind` is the
+variable kind (`pose`) or the template, `step` the absolute time index; `relative_labels()`
+adds `rel_step` = step - first step of the graph.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Iterator, Sequence
+
+import networkx as nx
+
+from gnppdsl.compile.factors import FactorInstance, VarInstance
+
+
+@dataclass(frozen=True, order=True)
+class FactorRef:
+    """A factor vertex: the index of the factor in the graph's factor list."""
+
+    index: int
+
+    def __str__(self) -> str:
+        return f"h{self.index}"
+
+
+class GraphNLP:
+    """A (sub)graph-NLP: networkx graph + the factor list its factor vertices point into."""
+
+    def __init__(self, factors: Sequence[FactorInstance], graph: nx.Graph | None = None,
+                 name: str = "G", initial_guess: dict | None = None):
+        self.factors: tuple[FactorInstance, ...] = tuple(factors)
+        self.name = name
+        # Optional start values per VarInstance (e.g. scene poses, R-LGP waypoints), shared by
+        # every subgraph; `solve_feasibility` uses them when no warm start is given.
+        self.initial_guess: dict = initial_guess if initial_guess is not None else {}
+        if graph is None:
+            graph = nx.Graph()
+            for i, f in enumerate(self.factors):
+                ref = FactorRef(i)
+                graph.add_node(ref, bipartite=1, vertex="factor", label=f.template,
+                               kind=f.template, step=f.step, tags=f.tags)
+                for j, v in enumerate(f.variables):
+                    if v not in graph:
+                        graph.add_node(v, bipartite=0, vertex="variable", label=v.key,
+                                       kind=v.kind, step=v.step, tags=v.tags)
+                    if graph.has_edge(ref, v):
+                        graph.edges[ref, v]["slots"] += (j,)
+                    else:
+                        graph.add_edge(ref, v, slots=(j,))
+        self.graph = graph
+
+    # -- construction ----------------------------------------------------------------------
+    @classmethod
+    def from_factors(cls, factors: Sequence[FactorInstance],
+                     variables: Iterable[VarInstance] = (), name: str = "G",
+                     initial_guess: dict | None = None) -> "GraphNLP":
+        """The graph-NLP of a factory output; extra `variables` are added even if unconstrained."""
+        g = cls(factors, name=name, initial_guess=initial_guess)
+        for v in variables:
+            if v not in g.graph:
+                g.graph.add_node(v, bipartite=0, vertex="variable", label=v.key, kind=v.kind,
+                                 step=v.step, tags=v.tags)
+        return g
+
+    def _derive(self, nodes: Iterable, suffix: str) -> "GraphNLP":
+        return GraphNLP(self.factors, self.graph.subgraph(nodes).copy(), f"{self.name}{suffix}",
+                        self.initial_guess)
+
+    # -- views ----------------------------------------------------------------------------
+    @property
+    def variables(self) -> list[VarInstance]:
+        return sorted((n for n in self.graph if isinstance(n, VarInstance)),
+                      key=lambda v: (v.step, v.key))
+
+    @property
+    def factor_refs(self) -> list[FactorRef]:
+        return sorted(n for n in self.graph if isinstance(n, FactorRef))
+
+    @property
+    def factor_instances(self) -> list[FactorInstance]:
+        return [self.factors[r.index] for r in self.factor_refs]
+
+    def factor(self, ref: FactorRef) -> FactorInstance:
+        return self.factors[ref.index]
+
+    def neighbours(self, node) -> list:
+        return list(self.graph.neighbors(node))
+
+    def __len__(self) -> int:
+        return self.graph.number_of_nodes()
+
+    def __contains__(self, node) -> bool:
+        return node in self.graph
+
+    @property
+    def n_factors(self) -> int:
+        return sum(1 for n in self.graph if isinstance(n, FactorRef))
+
+    @property
+    def steps(self) -> tuple[int, int] | None:
+        """(first, last) time index covered by the factors (a transition factor covers 2)."""
+        refs = self.factor_refs
+        if not refs:
+            return None
+        fs = [self.factor(r) for r in refs]
+        lo = min(min([f.step, *f.steps]) for f in fs)
+        hi = max(max([f.step + f.span - 1, *f.steps]) for f in fs)
+        return lo, hi
+
+    def signature(self) -> frozenset:
+        """Hashable identity of the vertex set (for memoising solves of the same subgraph)."""
+        return frozenset(self.graph.nodes)
+
+    def relative_labels(self) -> nx.Graph:
+        """A copy with `rel_step` = step - first step, for matching at any time offset."""
+        g = self.graph.copy()
+        first = min((d["step"] for _, d in g.nodes(data=True)), default=0)
+        for _, d in g.nodes(data=True):
+            d["rel_step"] = d["step"] - first
+        return g
+
+    def __repr__(self) -> str:
+        return (f"GraphNLP({self.name}: {self.n_factors} factors, "
+                f"{len(self.variables)} variables, steps {self.steps})")
+
+    def describe(self) -> str:
+        """Multi-line listing of the factors (for conflict reports and debugging)."""
+        return "\n".join(self.factor(r).label for r in self.factor_refs)
+
+    # -- subgraphs ------------------------------------------------------------------------
+    def subgraph(self, variables: Iterable[VarInstance] | None = None,
+                 factors: Iterable[FactorRef | int] | None = None, suffix: str = "'") -> "GraphNLP":
+        """Subgraph-NLP M ⊆ G (Definition 4.2).
+
+        - only `variables`: X_M = variables, H_M = every factor whose neighbours are all in X_M;
+        - only `factors`: H_M = factors, X_M = the variables they depend on (spanned subgraph);
+        - both: X_M = variables, H_M = the given factors whose neighbours are all in X_M.
+        """
+        fset = None if factors is None else {
+            f if isinstance(f, FactorRef) else FactorRef(f) for f in factors}
+        if fset is not None:
+            fset = {f for f in fset if f in self.graph}
+        if variables is None:
+            if fset is None:
+                return self._derive(self.graph.nodes, suffix)
+            xs = {v for f in fset for v in self.graph.neighbors(f)}
+        else:
+            xs = {v for v in variables if v in self.graph}
+        cand = self.factor_refs if fset is None else fset
+        hs = [f for f in cand if all(v in xs for v in self.graph.neighbors(f))]
+        return self._derive([*xs, *hs], suffix)
+
+    def apply_relaxation(self, dropped_tags: Iterable[str], name: str = "") -> "GraphNLP":
+        """Delete every variable and factor carrying a dropped tag, and every factor touching a
+        deleted variable (a factor is only kept if all its variables are: Definition 4.2)."""
+        dropped = frozenset(dropped_tags)
+        xs = [n for n in self.graph if isinstance(n, VarInstance) and not (n.tags & dropped)]
+        hs = [r for r in self.factor_refs if not (self.factor(r).tags & dropped)]
+        return self.subgraph(variables=xs, factors=hs, suffix=f"[{name or ','.join(sorted(dropped))}]")
+
+    def connected_components(self, with_factors_only: bool = True) -> list["GraphNLP"]:
+        """Connected components (Property 4.5), ordered by first step then size. Components
+        without factors have no constraint and are always feasible; skipped by default."""
+        comps = []
+        for nodes in nx.connected_components(self.graph):
+            if with_factors_only and not any(isinstance(n, FactorRef) for n in nodes):
+                continue
+            comps.append(self._derive(nodes, f"#{len(comps)}"))
+        comps.sort(key=lambda g: ((g.steps or (0, 0))[0], len(g)))
+        return comps
+
+    def time_slice(self, first: int, last: int) -> "GraphNLP":
+        """G(<s_first ... s_last>): factors generated by those states (a transition factor at
+        step i needs i and i+1 in range) and only variables of those steps."""
+        xs = [n for n in self.graph if isinstance(n, VarInstance) and first <= n.step <= last]
+        hs = [r for r in self.factor_refs
+              if first <= self.factor(r).step and self.factor(r).step + self.factor(r).span - 1 <= last]
+        m = self.subgraph(variables=xs, factors=hs, suffix=f"[{first}..{last}]")
+        m.graph.remove_nodes_from([n for n in list(m.graph) if m.graph.degree(n) == 0])
+        return m
+
+    def iter_factor_vars(self) -> Iterator[tuple[FactorRef, FactorInstance]]:
+        for r in self.factor_refs:
+            yield r, self.factor(r)

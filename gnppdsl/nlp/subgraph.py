@@ -1,0 +1,199 @@
+"""Finding a small infeasible subgraph (paper 000, Sec. VI and Algorithm 1, Appendix A).
+
+    for r in R (loose to tight, the full graph last):
+        G_r  <- r(G)                        # delete tagged variables and constraints
+        for g in ConnectedComponents(G_r):
+            feasible, [t_f, t_l] <- BinarySearchTime(g)
+            if not feasible:
+                return ConvergenceHeuristic(g[t_f, t_l])
+
+Switches as in the paper's GNPP_trng names: `t` double binary search on the time index,
+`r` relaxations, `n` convergence heuristic (`g`, the database of solved subgraphs, belongs to
+the caller: it is implemented by the injected `check`, see below). Without `t` a whole
+infeasible component is returned; without `r` only the full graph is searched; without `n` the
+time slice is returned as is. Connected components are always used (Property 4.5: they are
+solved independently and the minimal infeasible subgraph is connected).
+
+Feasibility checks go through `check(graph) -> bool | FeasibilityResult`, injected so that the
+solve loop can answer from its database of solved subgraphs without calling the solver (the
+paper's switch g) and count real NLP solves. Within one call every distinct subgraph is checked
+at most once (memo by vertex set). The convergence heuristic needs the optimizer's convergence
+point on g[t_f, t_l]; when the check answered with a plain bool, `solve` is called for it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Iterable, Sequence
+
+from gnppdsl.compile.factors import VarInstance
+from gnppdsl.nlp.feasibility import FeasibilityResult, FeasibilitySolver
+from gnppdsl.nlp.graph import GraphNLP
+
+CheckResult = "bool | FeasibilityResult"
+Check = Callable[[GraphNLP], "bool | FeasibilityResult"]
+
+
+@dataclass(frozen=True)
+class Relaxation:
+    """A relaxation rule: drop every variable and constraint carrying one of `dropped` tags."""
+
+    name: str
+    dropped: frozenset[str] = frozenset()
+
+    @staticmethod
+    def of(name: str, dropped: Iterable[str]) -> "Relaxation":
+        return Relaxation(name, frozenset(dropped))
+
+
+FULL = Relaxation("full")
+
+
+@dataclass
+class SearchStats:
+    checks: int = 0                  # distinct subgraphs checked (memo hits excluded)
+    solves: int = 0                  # checks answered by the NLP solver (FeasibilityResult)
+    heuristic_solves: int = 0        # extra solves to get a convergence point
+    log: list[tuple[str, int, bool]] = field(default_factory=list)   # (graph, |H|, feasible)
+
+
+@dataclass
+class SearchResult:
+    """Outcome of Alg. 1: an infeasible subgraph, or the full graph found feasible."""
+
+    subgraph: GraphNLP | None              # None when every component of G is feasible
+    relaxation: str | None = None          # the relaxation under which it was found
+    time_range: tuple[int, int] | None = None
+    values: dict[VarInstance, object] = field(default_factory=dict)  # solution if feasible
+    complete_values: bool = False          # every variable of G has a value from a real solve
+    stats: SearchStats = field(default_factory=SearchStats)
+
+    @property
+    def feasible(self) -> bool:
+        return self.subgraph is None
+
+
+class _Checker:
+    """Memoised, counting wrapper around the injected check."""
+
+    def __init__(self, check: Check, stats: SearchStats):
+        self.check, self.stats = check, stats
+        self.memo: dict[frozenset, bool | FeasibilityResult] = {}
+
+    def result(self, g: GraphNLP) -> bool | FeasibilityResult:
+        if g.n_factors == 0:
+            return True
+        key = g.signature()
+        if key not in self.memo:
+            r = self.check(g)
+            self.stats.checks += 1
+            if isinstance(r, FeasibilityResult):
+                self.stats.solves += 1
+            self.memo[key] = r
+            self.stats.log.append((g.name, g.n_factors, _ok(r)))
+        return self.memo[key]
+
+    def __call__(self, g: GraphNLP) -> bool:
+        return _ok(self.result(g))
+
+
+def _ok(r: bool | FeasibilityResult) -> bool:
+    return r.feasible if isinstance(r, FeasibilityResult) else bool(r)
+
+
+def binary_search_time(graph: GraphNLP, is_feasible: Callable[[GraphNLP], bool]
+                       ) -> tuple[bool, tuple[int, int] | None]:
+    """Double binary search on the time index (Sec. VI-A), O(log n) feasibility checks.
+
+    Returns (True, None) if `graph` is feasible, else (False, (f, l)) with l the minimum upper
+    index such that G[s_lo .. s_l] is infeasible and then f the maximum lower index such that
+    G[s_f .. s_l] is infeasible. Correct by monotone infeasibility (Property 4.4): slices grow
+    with l and shrink with f."""
+    steps = graph.steps
+    if steps is None or is_feasible(graph):
+        return True, None
+    lo, hi = steps
+    a, b = lo, hi                       # invariant: G[lo..b] infeasible
+    while a < b:
+        mid = (a + b) // 2
+        if is_feasible(graph.time_slice(lo, mid)):
+            a = mid + 1
+        else:
+            b = mid
+    last = b
+    a, b = lo, last                     # invariant: G[a..last] infeasible
+    while a < b:
+        mid = (a + b + 1) // 2
+        if is_feasible(graph.time_slice(mid, last)):
+            b = mid - 1
+        else:
+            a = mid
+    return False, (a, last)
+
+
+def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
+                          is_feasible: Callable[[GraphNLP], bool],
+                          tolerance: float = 1e-6) -> GraphNLP:
+    """Sec. VI-C: the subgraph M' spanned by the factors violated at the convergence point x*
+    of an infeasible `graph`; returned only if M' is itself infeasible, else `graph`."""
+    violated = result.violated(tolerance)
+    if not violated:
+        return graph
+    m = graph.subgraph(factors=violated, suffix="{n}")
+    if m.signature() == graph.signature():
+        return graph
+    return graph if is_feasible(m) else m
+
+
+def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] = (),
+                             switches: str = "trn", check: Check | None = None,
+                             solver: FeasibilitySolver | None = None,
+                             tolerance: float | None = None) -> SearchResult:
+    """Algorithm 1. `relaxations` are tried loose to tight, the full graph last (added if
+    missing). `check` defaults to `solver.solve` with warm starts from earlier feasible
+    solutions; `solver` also provides convergence points when `check` returns bools."""
+    unknown = set(switches) - set("trng")
+    if unknown:
+        raise ValueError(f"unknown switches {''.join(sorted(unknown))!r} (allowed: t, r, n, g)")
+    solver = solver or FeasibilitySolver()
+    tol = solver.options.tolerance if tolerance is None else tolerance
+    warm: dict[VarInstance, object] = {}
+
+    def default_check(g: GraphNLP) -> FeasibilityResult:
+        r = solver.solve(g, warm_start=warm)
+        if r.feasible:
+            warm.update(r.values)
+        return r
+
+    stats = SearchStats()
+    checker = _Checker(check or default_check, stats)
+    rules = list(relaxations) if "r" in switches else []
+    rules = [r for r in rules if r.dropped] + [FULL]
+    for rule in rules:
+        g_r = graph.apply_relaxation(rule.dropped, rule.name) if rule.dropped else graph
+        values: dict[VarInstance, object] = {}
+        complete = True
+        for comp in g_r.connected_components():
+            if "t" in switches:
+                feasible, rng = binary_search_time(comp, checker)
+            else:
+                feasible = checker(comp)
+                rng = None if feasible else comp.steps
+            if feasible:
+                r = checker.result(comp)
+                if isinstance(r, FeasibilityResult):
+                    values.update(r.values)
+                else:
+                    complete = False
+                continue
+            g_s = comp.time_slice(*rng) if "t" in switches else comp
+            if "n" in switches:
+                r = checker.result(g_s)
+                if not isinstance(r, FeasibilityResult):
+                    r = solver.solve(g_s, warm_start=warm)
+                    stats.heuristic_solves += 1
+                g_s = convergence_heuristic(g_s, r, checker, tol)
+            return SearchResult(g_s, rule.name, rng, stats=stats)
+        if rule is FULL:
+            covered = all(v in values for v in graph.variables)
+            return SearchResult(None, None, None, values, complete and covered, stats)
+    raise AssertionError("unreachable: the full graph is always the last rule")

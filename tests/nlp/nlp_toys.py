@@ -1,0 +1,137 @@
+"""Hand-built stage-2 factor instances for planar toy problems (tests of gnppdsl.nlp only).
+
+Each builder returns FactorInstances exactly as the factory would: bodies with Slot/Num/Call,
+tags, steps and a generator of partial states (fact (var, value) pairs chosen per toy)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gnppdsl.compile.factors import FactorInstance, VarInstance
+from gnppdsl.compile.sas import PartialState
+from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Vec
+from gnppdsl.nlp.geometry_protocol import Body
+
+
+def C(fn, *args):
+    return Call(fn, tuple(args))
+
+
+def pose(obj: str, step: int, tags=("object",)) -> VarInstance:
+    return VarInstance("pose", (obj,), step, "SE2", 3, frozenset(tags))
+
+
+def factor(template, variables, body, step, tags=(), span=1, rule=None, gen=()):
+    return FactorInstance(template=template, rule=rule or template.split(".")[-1],
+                          bindings=tuple((f"a{i}", v.args[0] if v.args else v.kind)
+                                         for i, v in enumerate(variables)),
+                          tags=frozenset(tags), step=step, span=span,
+                          generator=tuple(PartialState.of(g) for g in gen) or
+                          tuple(PartialState() for _ in range(span)),
+                          variables=tuple(variables), body=tuple(body))
+
+
+def in_box(v: VarInstance, c: float, step: int, tags=("region",)) -> FactorInstance:
+    """Centre of v inside [-c, c]^2: |x| <= c, |y| <= c written with abs (a real template)."""
+    p = C("pos_se2", Slot(0))
+    body = [Constraint(C("abs", Index(p, Num(0))), "<=", Num(c)),
+            Constraint(C("abs", Index(p, Num(1))), "<=", Num(c))]
+    return factor("toy.in_box", [v], body, step, tags)
+
+
+def no_overlap(a: VarInstance, b: VarInstance, ra: float, rb: float, step: int,
+               tags=("collision",)) -> FactorInstance:
+    d = C("norm", C("sub", C("pos_se2", Slot(0)), C("pos_se2", Slot(1))))
+    return factor("toy.no_overlap", [a, b], [Constraint(d, ">=", C("add", Num(ra), Num(rb)))],
+                  step, tags)
+
+
+def discs(n: int, c: float = 0.8, r: float = 1.0):
+    """n discs of radius r with centres in [-c, c]^2 that must not overlap (one step)."""
+    vs = [pose(f"b{i}", 0) for i in range(n)]
+    fs = [in_box(v, c, 0) for v in vs]
+    fs += [no_overlap(vs[i], vs[j], r, r, 0) for i in range(n) for j in range(i + 1, n)]
+    return vs, fs
+
+
+def chain(n_steps: int, conflict_at: int | None = 3):
+    """One block moving along x over steps 0..n; transitions limit |dx| <= 0.5 at the conflict
+    step and <= 10 elsewhere; the block must be at x <= 0 at `conflict_at` and x >= 1 at the
+    next step (|dx| written as two rows: `abs` is nonsmooth and slows ipopt down a lot on
+    chains, measured 10x more iterations). Only steps conflict_at..conflict_at+1 are jointly infeasible. Extra factors keep
+    the graph connected (angle pinned, y pinned) so time slicing has work to do."""
+    vs = [pose("b", i) for i in range(n_steps + 1)]
+    fs = [factor("toy.start", [vs[0]], [Constraint(Slot(0), "==", Vec((Num(-3.0), Num(0.0), Num(0.0))))],
+                 0, ("init",), gen=[[(0, 0)]])]
+    for i in range(n_steps):
+        lim = 0.5 if i == conflict_at else 10.0
+        dx = C("sub", Index(Slot(1), Num(0)), Index(Slot(0), Num(0)))
+        body = [Constraint(dx, "<=", Num(lim)), Constraint(C("neg", dx), "<=", Num(lim)),
+                Constraint(Index(Slot(1), Num(1)), "==", Index(Slot(0), Num(1))),
+                Constraint(C("angle_diff", Index(Slot(1), Num(2)), Index(Slot(0), Num(2))), "==", Num(0.0))]
+        fs.append(factor("toy.move", [vs[i], vs[i + 1]], body, i, ("time",), span=2,
+                         gen=[[(1, i)], [(1, i + 1)]]))
+    if conflict_at is not None:
+        fs.append(factor("toy.left", [vs[conflict_at]],
+                         [Constraint(Index(Slot(0), Num(0)), "<=", Num(0.0))], conflict_at,
+                         gen=[[(2, 0)]]))
+        fs.append(factor("toy.right", [vs[conflict_at + 1]],
+                         [Constraint(Index(Slot(0), Num(0)), ">=", Num(1.0))], conflict_at + 1,
+                         gen=[[(2, 1)]]))
+    return vs, fs
+
+
+class DiscGeometry:
+    """Analytic test stand-in for gnppdsl.geometry: every body is a disc (2D) or a sphere (3D)
+    whose radius is given per name; fk is a planar 2-link arm for robot "arm2"."""
+
+    def __init__(self, radii: dict[str, float], link_lengths=(1.0, 1.0)):
+        self.radii, self.l = radii, link_lengths
+
+    def needs_mx(self, primitive: str) -> bool:
+        return False
+
+    def _r(self, b: Body) -> float:
+        return self.radii[b.name if b.link is None else f"{b.name}/{b.link}"]
+
+    def fk(self, robot, q, frame, base):
+        import casadi as ca
+        from gnppdsl.nlp.casadi_expr import compose_se3
+        l1, l2 = self.l
+        x = l1 * ca.cos(q[0]) + l2 * ca.cos(q[0] + q[1])
+        y = l1 * ca.sin(q[0]) + l2 * ca.sin(q[0] + q[1])
+        t = q[0] + q[1]
+        local = ca.vertcat(x, y, 0, 0, 0, ca.sin(t / 2), ca.cos(t / 2))
+        return compose_se3(base, local)
+
+    def fk_numeric(self, robot, q, frame, base):
+        l1, l2 = self.l
+        t = q[0] + q[1]
+        p = np.array([l1 * math.cos(q[0]) + l2 * math.cos(t), l1 * math.sin(q[0]) + l2 * math.sin(t), 0.0])
+        R = _rot_numpy(base[3:7])
+        yaw = np.array([[math.cos(t), -math.sin(t), 0], [math.sin(t), math.cos(t), 0], [0, 0, 1]])
+        Rw = R @ yaw
+        from gnppdsl.nlp.evaluate import _quat  # matrix -> quaternion helper of the checker
+        return np.concatenate([base[:3] + R @ p, _quat(Rw)])
+
+    def sdist(self, a, pa, b, pb):
+        import casadi as ca
+        return ca.sqrt(ca.sumsqr(pa[0:3] - pb[0:3])) - self._r(a) - self._r(b)
+
+    def sdist2(self, a, pa, b, pb):
+        import casadi as ca
+        return ca.sqrt(ca.sumsqr(pa[0:2] - pb[0:2])) - self._r(a) - self._r(b)
+
+    def sdist_numeric(self, a, pa, b, pb):
+        return float(np.linalg.norm(np.asarray(pa[:3]) - pb[:3])) - self._r(a) - self._r(b)
+
+    def sdist2_numeric(self, a, pa, b, pb):
+        return float(np.linalg.norm(np.asarray(pa[:2]) - pb[:2])) - self._r(a) - self._r(b)
+
+
+def _rot_numpy(q):
+    x, y, z, w = np.asarray(q, float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
