@@ -1,0 +1,174 @@
+"""`GeometryContext`: the scene's robots and shapes behind the nlp layer's geometry protocol.
+
+Why structural typing: the protocol (`gnppdsl.nlp.geometry_protocol.Geometry`) lives in the nlp
+layer, which sits above geometry; importing it here would invert the layering. This class has
+the protocol's methods (`needs_mx`, `fk`, `sdist`, `sdist2` and their `_numeric` twins) and
+accepts any body object with `.name` and `.link` attributes (the nlp `Body`), a plain object
+name, or a tuple `("link", robot, link_name)`.
+
+Symbolic results are casadi expressions valid for SX and MX arguments (casadi embeds the coal
+callback as a call node in SX too). Numeric results go straight through pinocchio and coal.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from gnppdsl.errors import UserError
+from gnppdsl.geometry.distance import (ConvexBody, WitnessCallback, se2_to_matrix, se2_to_rp, signed_distance_expr,
+                                       witness)
+from gnppdsl.geometry.kinematics import fk_function, fn_name, quat_to_rotation
+from gnppdsl.geometry.robots import RobotModel, load_robot, se3_to_matrix
+from gnppdsl.geometry.shapes import coal_shape
+from gnppdsl.ir.scene_model import Scene
+
+
+def body_key(body: Any) -> tuple[str, str | None]:
+    """Normalise a body designation to (name, link or None)."""
+    if isinstance(body, str):
+        return body, None
+    if isinstance(body, tuple):
+        if len(body) == 3 and body[0] == "link":
+            return str(body[1]), str(body[2])
+        if len(body) == 2:
+            return str(body[0]), (None if body[1] is None else str(body[1]))
+    if hasattr(body, "name"):
+        return str(body.name), getattr(body, "link", None)
+    raise TypeError(f"not a collision body: {body!r}")
+
+
+class GeometryContext:
+    """Geometry of one scene: robot models, convex bodies, cached casadi functions."""
+
+    def __init__(self, scene: Scene, models: dict[str, RobotModel] | None = None):
+        self.scene = scene
+        self.models: dict[str, RobotModel] = dict(models or {})
+        for name, spec in scene.robots.items():
+            if spec.kind == "urdf" and name not in self.models:
+                self.models[name] = load_robot(spec)
+        self._bodies: dict[tuple, ConvexBody] = {}
+        self._callbacks: dict[tuple, WitnessCallback] = {}
+        self._sdist_fn: dict[tuple, ca.Function] = {}
+
+    # -- robots -------------------------------------------------------------------------------
+    def robot(self, name: str) -> RobotModel:
+        if name not in self.models:
+            spec = self.scene.robots.get(name)
+            if spec is None:
+                raise UserError(f"unknown robot '{name}'")
+            raise UserError(f"robot '{name}' is of kind '{spec.kind}' and has no kinematic model")
+        return self.models[name]
+
+    def robot_dims(self, name: str) -> tuple[int, np.ndarray, np.ndarray]:
+        """(number of planner coordinates, lower limits, upper limits) of `joints(name)`."""
+        r = self.robot(name)
+        return r.nc, r.lower.copy(), r.upper.copy()
+
+    def links(self, name: str) -> list[str]:
+        """Links of a robot that carry collision geometry (valid `link(r, "...")` bodies)."""
+        return list(self.robot(name).links)
+
+    def self_collision_pairs(self, name: str) -> list[tuple[str, str]]:
+        """Link pairs checked for self-collision (all pairs minus SRDF-disabled ones)."""
+        return list(self.robot(name).self_pairs)
+
+    def base(self, name: str) -> np.ndarray:
+        """The scene base pose (SE3 7-vector) of a robot."""
+        return np.asarray(self.scene.robots[name].base, dtype=float)
+
+    # -- bodies -------------------------------------------------------------------------------
+    def body(self, body: Any, planar: bool = False) -> ConvexBody:
+        name, link = body_key(body)
+        key = (name, link, planar)
+        if key in self._bodies:
+            return self._bodies[key]
+        if link is not None:
+            if planar:
+                raise UserError(f"link({name}, {link!r}): robot links have no planar (sdist2) shape")
+            r = self.robot(name)
+            if link not in r.links:
+                import difflib
+                close = difflib.get_close_matches(link, list(r.links), n=1)
+                hint = f" (did you mean '{close[0]}'?)" if close else ""
+                raise UserError(f"robot {name} has no link '{link}' with collision geometry{hint}")
+            gs = r.links[link]
+            cb = ConvexBody(f"{name}/{link}", [g.shape for g in gs], [g.placement for g in gs])
+        else:
+            ent = self.scene.entity(name)
+            if ent is None:
+                raise UserError(f"unknown collision body '{name}'")
+            shape = ent.shape
+            if shape is None:
+                raise UserError(f"'{name}' is a robot with a kinematic model: name one of its links, "
+                                f"e.g. link({name}, \"{next(iter(self.robot(name).links), '...')}\")")
+            s = coal_shape(shape, planar)
+            if s is None:
+                raise UserError(f"'{name}' has shape 'none' and cannot collide")
+            cb = ConvexBody(name, [s], [np.eye(4)])
+        self._bodies[key] = cb
+        return cb
+
+    def _callback(self, a: Any, b: Any, planar: bool) -> WitnessCallback:
+        ka, kb = body_key(a), body_key(b)
+        key = (ka, kb, planar)
+        if key not in self._callbacks:
+            name = fn_name("sdist2" if planar else "sdist", ka[0], ka[1] or "", kb[0], kb[1] or "")
+            self._callbacks[key] = WitnessCallback(name, self.body(a, planar), self.body(b, planar))
+        return self._callbacks[key]
+
+    # -- protocol: symbolic ---------------------------------------------------------------------
+    def needs_mx(self, primitive: str) -> bool:
+        """Nothing needs MX: casadi embeds the coal callback in SX graphs as a call node."""
+        return False
+
+    def fk(self, robot: str, q: Any, frame: str, base: Any) -> Any:
+        r = self.robot(robot)
+        if q.shape[0] != r.nc:
+            raise UserError(f"fk({robot}): expected {r.nc} joint coordinates, got {q.shape[0]}")
+        return fk_function(r, frame, with_base=True)(q, base)
+
+    def _sdist_function(self, a: Any, b: Any, planar: bool) -> ca.Function:
+        """Cached Function (poseA, poseB) -> d, so bodies share one graph per body pair."""
+        key = (body_key(a), body_key(b), planar)
+        if key not in self._sdist_fn:
+            cb = self._callback(a, b, planar)
+            n = 3 if planar else 7
+            xa, xb = ca.SX.sym("pa", n), ca.SX.sym("pb", n)
+            if planar:
+                (RA, pA), (RB, pB) = se2_to_rp(xa), se2_to_rp(xb)
+            else:
+                RA, pA, RB, pB = quat_to_rotation(xa[3:7]), xa[0:3], quat_to_rotation(xb[3:7]), xb[0:3]
+            d = signed_distance_expr(cb, RA, pA, RB, pB)
+            self._sdist_fn[key] = ca.Function(cb.name(), [xa, xb], [d], ["pose_a", "pose_b"], ["d"])
+        return self._sdist_fn[key]
+
+    def sdist(self, body_a: Any, pose_a: Any, body_b: Any, pose_b: Any) -> Any:
+        return self._sdist_function(body_a, body_b, False)(pose_a, pose_b)
+
+    def sdist2(self, body_a: Any, pose_a: Any, body_b: Any, pose_b: Any) -> Any:
+        return self._sdist_function(body_a, body_b, True)(pose_a, pose_b)
+
+    # -- protocol: numeric (pinocchio + coal directly) --------------------------------------------
+    def fk_numeric(self, robot: str, q: np.ndarray, frame: str, base: np.ndarray) -> np.ndarray:
+        from gnppdsl.geometry.robots import matrix_to_se3
+        return matrix_to_se3(self.fk_matrix(robot, q, frame, base))
+
+    def fk_matrix(self, robot: str, q: np.ndarray, frame: str, base: np.ndarray | None = None) -> np.ndarray:
+        """4x4 world placement of a frame computed by pinocchio (not casadi)."""
+        import pinocchio as pin
+        r = self.robot(robot)
+        data = r.model.createData()
+        pin.framesForwardKinematics(r.model, data, r.to_pin_q(q))
+        B = r.base if base is None else se3_to_matrix(base)
+        return B @ np.array(data.oMf[r.frame_id(frame)].homogeneous)
+
+    def sdist_numeric(self, body_a: Any, pose_a: np.ndarray, body_b: Any, pose_b: np.ndarray) -> float:
+        Ta, Tb = se3_to_matrix(pose_a), se3_to_matrix(pose_b)
+        return float(witness(self.body(body_a), Ta[:3, :3], Ta[:3, 3], self.body(body_b), Tb[:3, :3], Tb[:3, 3])[0])
+
+    def sdist2_numeric(self, body_a: Any, pose_a: np.ndarray, body_b: Any, pose_b: np.ndarray) -> float:
+        Ta, Tb = se2_to_matrix(pose_a), se2_to_matrix(pose_b)
+        return float(witness(self.body(body_a, True), Ta[:3, :3], Ta[:3, 3], self.body(body_b, True),
+                             Tb[:3, :3], Tb[:3, 3])[0])

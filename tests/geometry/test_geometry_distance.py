@@ -1,0 +1,209 @@
+"""Signed distance inside casadi: values vs coal and closed forms, gradients vs finite differences."""
+from __future__ import annotations
+
+import math
+import zlib
+import time
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from gnppdsl.errors import UserError
+from gnppdsl.geometry.context import GeometryContext
+from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
+
+I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def _obj(name, kind, size, mesh=None):
+    return SceneObject(name, SceneShape(kind, size, mesh), I7)
+
+
+@pytest.fixture(scope="module")
+def mesh_file(tmp_path_factory):
+    import trimesh
+    p = tmp_path_factory.mktemp("mesh") / "tetra.stl"
+    m = trimesh.Trimesh(vertices=[[0, 0, 0], [0.2, 0, 0], [0, 0.15, 0], [0.02, 0.03, 0.1], [0.05, 0.05, 0.02]],
+                        faces=[[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    m.export(p)
+    return str(p)
+
+
+@pytest.fixture(scope="module")
+def ctx(mesh_file):
+    objs = [_obj("box", "box", (0.3, 0.2, 0.1)), _obj("cyl", "cylinder", (0.05, 0.3)), _obj("ball", "sphere", (0.07,)),
+            _obj("ball2", "sphere", (0.12,)), _obj("mesh", "mesh", (1.0, 1.0, 1.0), mesh_file),
+            _obj("disc", "circle", (0.1,)), _obj("box2", "box", (0.1, 0.4, 0.2))]
+    robots = {"left": SceneRobot("left", "urdf", model="panda", ee="panda_hand_tcp",
+                                 base=(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0))}
+    return GeometryContext(Scene("t", 3, robots, {o.name: o for o in objs}))
+
+
+def _rand_pose(rng, spread=0.3):
+    q = rng.normal(size=4)
+    return np.r_[rng.uniform(-spread, spread, 3), q / np.linalg.norm(q)]
+
+
+def _sym_fn(ctx, a, b, kind=ca.SX):
+    xa, xb = kind.sym("a", 7), kind.sym("b", 7)
+    d = ctx.sdist(a, xa, b, xb)
+    return ca.Function("f", [xa, xb], [d, ca.jacobian(d, ca.vertcat(xa, xb))])
+
+
+PAIRS = [("box", "cyl"), ("box", "ball"), ("cyl", "ball"), ("mesh", "box"), ("ball", "ball2"), ("box", "box2"),
+         ("mesh", "cyl")]
+
+
+@pytest.mark.parametrize("a,b", PAIRS)
+def test_sdist_value_and_gradient(ctx, a, b):
+    rng = np.random.default_rng(zlib.crc32(f"{a}-{b}".encode()))
+    skipped = 0
+    f = _sym_fn(ctx, a, b)
+    fm = _sym_fn(ctx, a, b, ca.MX)
+    n_pen = n_sep = 0
+    worst_val = worst_grad = 0.0
+    h = 1e-6
+    curved = "cyl" in (a, b)
+    worst_curved_pen = 0.0
+    for i in range(30):
+        spread = 0.3 if i % 2 else 0.1
+        pa, pb = _rand_pose(rng, spread), _rand_pose(rng, spread)
+        d_ref = ctx.sdist_numeric(a, pa, b, pb)
+        d, J = f(pa, pb)
+        d_mx, J_mx = fm(pa, pb)
+        worst_val = max(worst_val, abs(float(d) - d_ref), abs(float(d_mx) - d_ref))
+        np.testing.assert_allclose(np.array(J_mx), np.array(J), atol=1e-12)
+        n_pen += d_ref < 0
+        n_sep += d_ref > 0
+        x = np.r_[pa, pb]
+        fd = np.zeros(14)
+        for k in range(14):
+            e = np.zeros(14); e[k] = h
+            fd[k] = (ctx.sdist_numeric(a, (x + e)[:7], b, (x + e)[7:]) -
+                     ctx.sdist_numeric(a, (x - e)[:7], b, (x - e)[7:])) / (2 * h)
+        err = np.abs(np.array(J).ravel() - fd).max()
+        # polytopes have non-differentiable poses (witness feature switches); skip the rare ones
+        polytope = "box" in (a, b) or "mesh" in (a, b)
+        if err > 1e-2 and polytope:
+            skipped += 1        # a witness feature switch inside the FD step: d is not differentiable here
+            continue
+        if curved and d_ref < 0:
+            # EPA on a curved shape is a polytope approximation: normals good to ~1e-3
+            worst_curved_pen = max(worst_curved_pen, err)
+            continue
+        if err > 1e-4 and polytope:
+            skipped += 1
+            continue
+        worst_grad = max(worst_grad, err)
+    print(f"\n[sdist {a}-{b}] penetrating={n_pen} separated={n_sep} |d - coal|={worst_val:.1e} "
+          f"|grad - fd|={worst_grad:.1e} skipped={skipped} (curved, penetrating: {worst_curved_pen:.1e})")
+    assert worst_val < 1e-9
+    assert worst_curved_pen < 5e-3
+    assert skipped <= 5, skipped
+    assert worst_grad < 1e-4
+    assert n_pen > 0 and n_sep > 0      # both regimes exercised
+
+
+def test_sdist_closed_forms(ctx):
+    # spheres: |c1 - c2| - r1 - r2, separated and penetrating
+    for dx in (0.5, 0.15, 0.0501):
+        pa = np.r_[0, 0, 0, 0, 0, 0, 1]
+        pb = np.r_[dx, 0.02, -0.01, 0, 0, 0, 1]
+        expect = np.linalg.norm(pb[:3]) - 0.07 - 0.12
+        assert abs(ctx.sdist_numeric("ball", pa, "ball2", pb) - expect) < 1e-8
+        d, J = _sym_fn(ctx, "ball", "ball2")(pa, pb)
+        assert abs(float(d) - expect) < 1e-8
+        np.testing.assert_allclose(np.array(J).ravel()[7:10], pb[:3] / np.linalg.norm(pb[:3]), atol=1e-7)
+    # axis-aligned boxes: gap along x; rotating box2 by 90 deg about z swaps its x/y extents
+    pa = np.r_[0, 0, 0, 0, 0, 0, 1]
+    pb = np.r_[0.5, 0.05, 0.0, 0, 0, 0, 1]
+    assert abs(ctx.sdist_numeric("box", pa, "box2", pb) - (0.5 - 0.15 - 0.05)) < 1e-8
+    pb_rot = np.r_[0.5, 0.05, 0.0, 0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4)]
+    assert abs(ctx.sdist_numeric("box", pa, "box2", pb_rot) - (0.5 - 0.15 - 0.2)) < 1e-8
+    # penetration depth along x
+    pb = np.r_[0.18, 0.0, 0.0, 0, 0, 0, 1]
+    assert abs(ctx.sdist_numeric("box", pa, "box2", pb) - (0.18 - 0.15 - 0.05)) < 1e-8
+
+
+def test_sdist2_planar_closed_forms():
+    objs = [SceneObject("c1", SceneShape("circle", (0.1,)), I7, pose2=(0, 0, 0)),
+            SceneObject("c2", SceneShape("circle", (0.2,)), I7, pose2=(0, 0, 0)),
+            SceneObject("b", SceneShape("box", (0.4, 0.2)), I7, pose2=(0, 0, 0))]
+    g = GeometryContext(Scene("p", 2, {}, {o.name: o for o in objs}))
+    xa, xb = ca.SX.sym("a", 3), ca.SX.sym("b", 3)
+    d = g.sdist2("c1", xa, "c2", xb)
+    f = ca.Function("f", [xa, xb], [d, ca.jacobian(d, xb)])
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        a = np.r_[rng.uniform(-0.3, 0.3, 2), rng.uniform(-3, 3)]
+        b = np.r_[rng.uniform(-0.3, 0.3, 2), rng.uniform(-3, 3)]
+        c = b[:2] - a[:2]
+        expect = np.linalg.norm(c) - 0.3
+        val, J = f(a, b)
+        assert abs(float(val) - expect) < 1e-6          # cylinders: GJK/EPA on curved shapes
+        # separated: GJK is precise; penetrating: EPA approximates the circles by polytopes
+        tol = 1e-4 if expect > 0 else 2e-3
+        np.testing.assert_allclose(np.array(J).ravel()[:2], c / np.linalg.norm(c), atol=tol)
+        assert abs(float(np.array(J).ravel()[2])) < tol   # a circle does not care about its angle
+    # box rotated by theta vs circle on its x axis: distance depends on theta exactly as a box does
+    for th in (0.0, math.pi / 2, math.pi / 6):
+        b = np.r_[0.6, 0.0, 0.0]
+        val = g.sdist2_numeric("b", np.r_[0, 0, th], "c1", b)
+        # exact distance from the circle centre (0.6, 0) to the rotated rectangle, minus the radius
+        R = np.array([[math.cos(th), math.sin(th)], [-math.sin(th), math.cos(th)]])
+        local = R @ b[:2]
+        dx = max(abs(local[0]) - 0.2, 0.0)
+        dy = max(abs(local[1]) - 0.1, 0.0)
+        assert abs(val - (math.hypot(dx, dy) - 0.1)) < 1e-6, (th, val)
+
+
+def test_link_distance_gradient_wrt_joints(ctx):
+    """sdist(link, fk(q), object, pose): d/dq from casadi vs finite differences of the independent
+    path (pinocchio forward kinematics + coal)."""
+    robot = ctx.robot("left")
+    q = ca.SX.sym("q", robot.nc)
+    base = ctx.base("left")
+    pose_ball = np.r_[0.45, 0.1, 0.55, 0, 0, 0, 1]
+    rng = np.random.default_rng(11)
+    for link in ("panda_link4", "panda_hand", "panda_leftfinger"):
+        d = ctx.sdist(("link", "left", link), ctx.fk("left", q, link, base), "ball", pose_ball)
+        f = ca.Function("f", [q], [d, ca.jacobian(d, q)])
+
+        def ref(qv):
+            return ctx.sdist_numeric(("link", "left", link), ctx.fk_numeric("left", qv, link, base), "ball", pose_ball)
+        for _ in range(5):
+            qv = robot.random_coords(rng)
+            val, J = f(qv)
+            assert abs(float(val) - ref(qv)) < 1e-9
+            fd = np.array([(ref(qv + e) - ref(qv - e)) / 2e-6 for e in np.eye(robot.nc) * 1e-6])
+            err = np.abs(np.array(J).ravel() - fd).max()
+            if link == "panda_leftfinger" and err > 1e-4:
+                continue          # four boxes: the active one can switch under the FD step
+            assert err < 1e-4, (link, err)
+
+
+def test_timings_and_errors(ctx):
+    xa, xb = ca.SX.sym("a", 7), ca.SX.sym("b", 7)
+    t0 = time.perf_counter()
+    d = ctx.sdist("box", xa, "mesh", xb)
+    f = ca.Function("f", [xa, xb], [d, ca.jacobian(d, ca.vertcat(xa, xb))])
+    t_build = time.perf_counter() - t0
+    pa, pb = np.r_[0, 0, 0, 0, 0, 0, 1], np.r_[0.3, 0.1, 0, 0, 0, 0, 1]
+    n = 300
+    t0 = time.perf_counter()
+    for _ in range(n):
+        f(pa, pb)
+    t_call = (time.perf_counter() - t0) / n
+    t0 = time.perf_counter()
+    for _ in range(n):
+        ctx.sdist_numeric("box", pa, "mesh", pb)
+    t_num = (time.perf_counter() - t0) / n
+    print(f"\n[sdist timing] build {t_build * 1e3:.2f} ms, casadi value+jacobian {t_call * 1e6:.1f} us/call, "
+          f"numeric coal {t_num * 1e6:.1f} us/call")
+    with pytest.raises(UserError, match="unknown collision body"):
+        ctx.sdist_numeric("nothing", pa, "box", pb)
+    with pytest.raises(UserError, match="did you mean 'panda_link4'"):
+        ctx.body(("link", "left", "panda_link44"))
+    with pytest.raises(UserError, match="name one of its links"):
+        ctx.body("left")
