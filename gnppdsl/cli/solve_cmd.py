@@ -1,0 +1,90 @@
+"""`gnpp solve PROBLEM`: run the Graph-NLP Planner (or the One-way baseline) on one problem.
+
+Exit codes: 0 solved; 1 not solved (no plan, time limit, solver failure), with the reason;
+2 bad input (unknown file, syntax or type error, bad option).
+Heavy imports (casadi, clingo, the solver) happen inside `run`, so `gnpp --help` stays fast.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("paths", nargs="+", metavar="PROBLEM",
+                        help="the problem file (.pntc); a domain file may be given before it")
+    parser.add_argument("--algorithm", choices=("gnpp", "oneway"), default=None,
+                        help="Graph-NLP Planner (default) or the One-way baseline "
+                             "(enumerate plans by length, block only the failed plan)")
+    parser.add_argument("--switches", default=None, metavar="SW",
+                        help="subset of 'trng' for gnpp: t = binary search on time, r = relaxations, "
+                             "n = convergence heuristic, g = database of solved subgraphs "
+                             "(default: the problem's solver settings, usually 'trn')")
+    parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
+    parser.add_argument("--seed", type=int, default=None, help="random seed of the NLP starts")
+    parser.add_argument("--db", default=None, metavar="PATH",
+                        help="persist the database of solved subgraphs in this SQLite file "
+                             "(implies switch g); a later run on the same domain starts from it")
+    parser.add_argument("--json", default=None, metavar="FILE", help="write the full result as JSON")
+    parser.add_argument("--render", default=None, metavar="DIR", help="render the keyframes of the solution as images")
+    parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
+    parser.add_argument("--tolerance", type=float, default=None, help="constraint violation tolerance")
+    parser.add_argument("--quiet", action="store_true", help="print only the final status line")
+    parser.add_argument("--verbose", action="store_true", help="print each plan and conflict as found")
+
+
+def run(args: argparse.Namespace) -> int:
+    from gnppdsl.errors import SolveFailure, UserError
+    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+
+    if args.switches is not None and set(args.switches) - set("trng"):
+        raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
+    if args.time_limit is not None and args.time_limit <= 0:
+        raise UserError("--time-limit must be positive")
+    if args.max_horizon is not None and args.max_horizon < 0:
+        raise UserError("--max-horizon must be >= 0")
+    compiled = load_and_compile(args.paths)
+    options = SolveOptions.from_settings(
+        compiled.problem.settings,
+        algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
+        seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
+    )
+    progress = None
+    if args.verbose and not args.quiet:
+        def progress(msg: str) -> None:
+            print(msg, flush=True)
+    result = solve_compiled(compiled, options, progress=progress)
+    if args.json:
+        try:
+            result.write_json(args.json)
+        except OSError as exc:
+            raise UserError(f"--json {args.json}: {exc.strerror or exc}") from None
+    if args.quiet:
+        print(f"{result.problem}: {'solved' if result.solved else result.status}"
+              + (f", N = {result.stats.N}" if result.solved else f": {result.message}"))
+    else:
+        print(result.summary())
+    if args.render and result.solved:
+        _render(compiled, result, args.render)
+    if not result.solved:
+        raise SolveFailure(f"gnpp: {result.problem} not solved: {result.message}")
+    return 0
+
+
+def _render(compiled, result, directory: str) -> None:
+    from pathlib import Path
+
+    from gnppdsl.errors import UserError
+
+    try:
+        from gnppdsl.geometry.render import render_keyframes
+    except ImportError:
+        print("gnpp: --render is not available in this build (no gnppdsl.geometry.render)", file=sys.stderr)
+        return
+    out = Path(directory)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"--render {directory}: {exc.strerror or exc}") from None
+    files = render_keyframes(compiled.problem, result, out)
+    print(f"rendered {len(files) if files is not None else 'the'} keyframes to {out}")

@@ -1,0 +1,532 @@
+"""The Graph-NLP Planner loop (paper 000, Fig. 3) and the One-way baseline.
+
+GNPP, repeated until a plan's graph-NLP is feasible:
+  1. the logic planner proposes the shortest plan <s_0 ... s_n> not excluded by any conflict;
+  2. the factory builds its graph-NLP G;
+  3. (switch g) if G contains a subgraph known to be infeasible, that is the conflict (no NLP);
+     otherwise Algorithm 1 (`gnppdsl.nlp.subgraph.find_infeasible_subgraph`) solves the
+     relaxations loose -> tight and the full graph last (switches t, r, n); every feasibility
+     check goes through `_Checker`, which answers from the database of solved subgraphs
+     (switch g), solves trajectories after the mode switches (Appendix C), counts NLPs and
+     enforces the time limit;
+  4. feasible: the solution is re-checked independently (numpy evaluation of every factor of
+     the full graph, `gnppdsl.nlp.evaluate`) and returned; infeasible: the subgraph is mapped to
+     partial states <p_0 ... p_L> and added to the planner as a conflict (Sec. VII).
+
+One-way (Sec. VIII-C): enumerate plans by length, solve each full graph-NLP, and block only the
+failed plan; the planner learns nothing about why.
+
+Time limit: one deadline for the whole solve, checked before every NLP and passed to the
+planner and to ipopt (max_wall_time), so the loop ends soon after it with status time_limit.
+"""
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from gnppdsl.compile.factors import FactorInstance, VarInstance
+from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.conflicts.database import SubgraphDatabase, names_of
+from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
+from gnppdsl.errors import UserError
+from gnppdsl.solve.result import (NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats,
+                                  Step)
+
+TRAJ = "traj"
+Progress = Callable[[str], None]
+
+
+class _TimeUp(Exception):
+    """Raised inside a feasibility check when the deadline has passed."""
+
+
+# ---------------------------------------------------------------------------------------------
+# options and compiled problems
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SolveOptions:
+    """How to solve: algorithm, switches, limits. `from_settings` merges the problem's
+    `solver { }` settings with command-line overrides (None = keep)."""
+
+    algorithm: str = "gnpp"          # "gnpp" | "oneway"
+    switches: str = "trn"            # subset of "trng" (gnpp only)
+    time_limit: float = 60.0
+    seed: int = 0
+    max_horizon: int = 12
+    tolerance: float = 1e-6
+    database: str | None = None      # SQLite path (implies switch g)
+    max_iter: int = 1000
+    restarts: int = 0                # extra random starts after an infeasible verdict
+    check_tolerance: float | None = None   # independent re-check threshold (default: tolerance)
+
+    @staticmethod
+    def from_settings(settings: Any = None, **overrides: Any) -> "SolveOptions":
+        base = SolveOptions()
+        if settings is not None:
+            kw = {}
+            for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
+                         "database", "max_iter"):
+                if hasattr(settings, name) and getattr(settings, name) is not None:
+                    kw[name] = getattr(settings, name)
+            base = replace(base, **kw)
+        opts = replace(base, **{k: v for k, v in overrides.items() if v is not None})
+        return opts.validated()
+
+    def validated(self) -> "SolveOptions":
+        if self.algorithm not in ("gnpp", "oneway"):
+            raise UserError(f"algorithm '{self.algorithm}' is not available here (use gnpp or oneway)")
+        if set(self.switches) - set("trng"):
+            raise UserError(f"switches '{self.switches}' are not a subset of 'trng'")
+        if self.algorithm == "oneway" and self.database:
+            raise UserError("a subgraph database (--db) needs the gnpp algorithm")
+        if self.time_limit <= 0:
+            raise UserError("the time limit must be positive")
+        switches = "".join(c for c in "trng" if c in self.switches)
+        if self.database and "g" not in switches:
+            switches += "g"
+        return replace(self, switches=switches if self.algorithm == "gnpp" else "")
+
+
+@dataclass
+class Compiled:
+    """A loaded problem with its SAS+ task, graph-NLP factory, geometry and relaxations."""
+
+    problem: Any                      # gnppdsl.ir.model.Problem
+    task: SASTask
+    factory: Any                      # gnppdsl.compile.factory.GraphNLPFactory
+    geometry: Any = None              # gnppdsl.geometry.context.GeometryContext or None
+    relaxations: tuple = ()           # gnppdsl.nlp.subgraph.Relaxation, loose -> tight
+    fingerprint: str = ""
+
+    @property
+    def name(self) -> str:
+        return getattr(self.problem, "name", "problem")
+
+    @property
+    def domain_name(self) -> str:
+        dom = getattr(self.problem, "domain", None)
+        return getattr(dom, "name", "domain")
+
+
+def load_and_compile(paths: Sequence[str] | str) -> Compiled:
+    """Load a problem (its domain found next to it, or given first), compile task and factory."""
+    from gnppdsl.ir import load_problem
+
+    paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    for p in paths:
+        if not Path(p).is_file():
+            raise UserError(f"{p}: no such file")
+    problem = load_problem(*paths) if len(paths) > 1 else load_problem(paths[0])
+    return compile_problem(problem)
+
+
+def compile_problem(problem: Any) -> Compiled:
+    from gnppdsl.compile.factory import GraphNLPFactory
+    from gnppdsl.compile.task import build_task
+    from gnppdsl.nlp.subgraph import Relaxation
+
+    task = build_task(problem)
+    geometry = None
+    if getattr(problem, "scene", None) is not None:
+        from gnppdsl.geometry.context import GeometryContext
+
+        geometry = GeometryContext(problem.scene)
+    factory = GraphNLPFactory(problem, task)
+    relaxations = tuple(Relaxation.of(r.name, r.drop) for r in (problem.relaxations or problem.domain.relaxations))
+    return Compiled(problem, task, factory, geometry, relaxations, fingerprint(problem))
+
+
+def fingerprint(problem: Any) -> str:
+    """Hash of what the semantic labels of factors do not capture: the domain's templates and
+    rules, and the scene's shapes and robot models (sdist / fk read them at solve time).
+    Poses are folded into factor bodies as constants, so they are not needed here."""
+    dom = problem.domain
+    parts = [repr(sorted(dom.templates.items())), repr(dom.rules), repr(dom.frames), repr(dom.continuous)]
+    scene = getattr(problem, "scene", None)
+    if scene is not None:
+        parts.append(repr(sorted((n, o.shape) for n, o in scene.objects.items())))
+        parts.append(repr(sorted((n, r.kind, r.model, r.urdf, r.base, r.ee, sorted(r.locked.items()), r.shape)
+                                 for n, r in scene.robots.items())))
+        parts.append(repr(sorted(tuple(sorted(p)) for p in scene.ignore_collisions)))
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+# ---------------------------------------------------------------------------------------------
+# trajectories: warm start by interpolation between the mode switches (Appendix C)
+# ---------------------------------------------------------------------------------------------
+def keyframe_of(traj: VarInstance, candidates: Iterable[VarInstance],
+                neighbours: Iterable[VarInstance] = ()) -> str | None:
+    """The variable key whose values at steps i and i+1 a trajectory at step i moves between:
+    a non-trajectory variable with the same objects and the trajectory's point dimension,
+    preferring one a factor connects to the trajectory (its boundary constraints)."""
+    near = {v.key for v in neighbours if not v.waypoints}
+    same = sorted({v.key for v in candidates
+                   if not v.waypoints and v.args == traj.args and v.dim == traj.point_dim})
+    for key in same:
+        if key in near:
+            return key
+    return same[0] if same else None
+
+
+def interpolate_trajectories(trajs: Iterable[VarInstance], values: dict[VarInstance, Any],
+                             neighbours: Callable[[VarInstance], Iterable[VarInstance]] = lambda v: ()
+                             ) -> dict[VarInstance, np.ndarray]:
+    """Warm start of each trajectory: linear interpolation from its keyframe at step i to the
+    one at i+1 (quaternions of SE3 points renormalised)."""
+    by_key_step = {(v.key, v.step): v for v in values}
+    out: dict[VarInstance, np.ndarray] = {}
+    for tr in trajs:
+        key = keyframe_of(tr, values.keys(), neighbours(tr))
+        if key is None:
+            continue
+        a = by_key_step.get((key, tr.step))
+        b = by_key_step.get((key, tr.step + 1), a)
+        if a is None:
+            a = b
+        if a is None:
+            continue
+        xa = np.asarray(values[a], float).reshape(-1)
+        xb = np.asarray(values[b], float).reshape(-1)
+        s = np.linspace(0.0, 1.0, tr.waypoints)[:, None]
+        pts = (1 - s) * xa[None, :] + s * xb[None, :]
+        if a.space == "SE3" and pts.shape[1] == 7:
+            pts[:, 3:7] /= np.maximum(np.linalg.norm(pts[:, 3:7], axis=1, keepdims=True), 1e-12)
+        out[tr] = pts.reshape(-1)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# one solve
+# ---------------------------------------------------------------------------------------------
+class _Checker:
+    """The feasibility check handed to Algorithm 1 for one plan's graph-NLP.
+
+    - switch g: answer from the database of solved subgraphs when it knows (no NLP);
+    - graphs with trajectories: solve their mode switches first, warm start the trajectories
+      by interpolation, then solve everything jointly;
+    - count NLPs, remember feasible values for warm starts, enforce the deadline.
+    """
+
+    def __init__(self, run: "_Run", solver: Any, graph: Any, use_db: bool):
+        self.run, self.solver, self.graph, self.use_db = run, solver, graph, use_db
+        self.values: dict[VarInstance, np.ndarray] = {}
+        self.results: dict[frozenset, Any] = {}
+
+    def solve(self, g: Any) -> Any:
+        run = self.run
+        if time.perf_counter() >= run.deadline:
+            raise _TimeUp()
+        key = g.signature()
+        if key in self.results:
+            return self.results[key]
+        trajs = [v for v in g.variables if TRAJ in v.tags or v.waypoints]
+        warm = {v: self.values[v] for v in g.variables if v in self.values}
+        if trajs and any(v not in self.values for v in trajs):
+            modes = g.apply_relaxation({TRAJ}, "modes")
+            if modes.n_factors and any(v not in self.values for v in modes.variables):
+                r0 = self.solve(modes)
+                if not r0.feasible:
+                    return r0          # a relaxation is infeasible, so g is (Property 4.4)
+            warm.update({v: self.values[v] for v in g.variables if v in self.values})
+            warm.update(interpolate_trajectories(
+                [v for v in trajs if v not in self.values], self.values,
+                lambda v: [x for h in self.graph.graph.neighbors(v) for x in self.graph.graph.neighbors(h)]))
+        r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
+        run.stats.nlp_solves += 1
+        run.stats.nlp_time += r.solve_time
+        self.results[key] = r
+        if r.feasible:
+            self.values.update(r.values)
+        return r
+
+    def __call__(self, g: Any) -> Any:
+        run = self.run
+        if self.use_db and run.db is not None:
+            verdict = run.db.lookup(g)
+            if verdict is not None:
+                if verdict:
+                    run.stats.db_feasible_hits += 1
+                else:
+                    run.stats.db_infeasible_hits += 1
+                return verdict
+        r = self.solve(g)
+        if self.use_db and run.db is not None:
+            conflict = None
+            if not r.feasible:
+                try:
+                    conflict = names_of(run.task, to_partial_states(g))
+                except ValueError:
+                    conflict = None
+            run.db.add(g, r.feasible, conflict)
+        return r
+
+
+class _Run:
+    def __init__(self, compiled: Compiled, options: SolveOptions, progress: Progress | None):
+        from gnppdsl.logic.planner import IncrementalPlanner
+        from gnppdsl.nlp.casadi_expr import BodyCompiler
+
+        self.compiled, self.options, self.progress = compiled, options, progress
+        self.task = compiled.task
+        self.start = time.perf_counter()
+        self.deadline = self.start + options.time_limit
+        self.stats = Stats()
+        self.conflicts: list[Conflict] = []
+        t0 = time.perf_counter()
+        self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
+        self.stats.logic_time += time.perf_counter() - t0
+        self.compiler = BodyCompiler(compiled.geometry)
+        self.db: SubgraphDatabase | None = None
+        if "g" in options.switches:
+            self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
+                                       fingerprint=compiled.fingerprint)
+
+    # -- helpers -------------------------------------------------------------------------------
+    def say(self, msg: str) -> None:
+        if self.progress is not None:
+            self.progress(msg)
+
+    def remaining(self) -> float:
+        return self.deadline - time.perf_counter()
+
+    def new_solver(self) -> Any:
+        """One FeasibilitySolver per plan graph (its assembled-NLP cache is keyed by vertex
+        sets whose factor references are positions in *this* graph's factor list); the casadi
+        Function cache (BodyCompiler) is shared by the whole run."""
+        from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+
+        opts = SolverOptions(tolerance=self.options.tolerance, max_iter=self.options.max_iter,
+                             restarts=self.options.restarts,
+                             ipopt={"ipopt.max_wall_time": max(0.05, self.remaining())})
+        return FeasibilitySolver(self.compiled.geometry, opts, compiler=self.compiler)
+
+    def build_graph(self, states: Sequence[Sequence[int]]) -> Any:
+        from gnppdsl.nlp.graph import GraphNLP
+
+        t0 = time.perf_counter()
+        factory = self.compiled.factory
+        factors = factory.factors(states)
+        variables = factory.variables(states)
+        guess = {}
+        if hasattr(factory, "initial_guess"):
+            for v in variables:
+                g = factory.initial_guess(v)
+                if g is not None:
+                    guess[v] = np.asarray(g, float)
+        graph = GraphNLP.from_factors(factors, variables, name="G", initial_guess=guess)
+        self.stats.factory_time += time.perf_counter() - t0
+        return graph
+
+    def next_plan(self, enumerate_: bool) -> Any:
+        t0 = time.perf_counter()
+        if enumerate_:
+            res = self.planner.next_plan(time_limit=max(0.0, self.remaining()))
+        else:
+            res = self.planner.shortest_plan(time_limit=max(0.0, self.remaining()))
+        self.stats.logic_time += time.perf_counter() - t0
+        return res
+
+    def add_conflict(self, plan: Any, sub_factors: Sequence[FactorInstance], source: str,
+                     relaxation: str) -> None:
+        seq = to_partial_states(sub_factors)
+        first = min(f.step for f in sub_factors)
+        # the conflict must hold in the plan that produced it, else it would not exclude it
+        holds = all(p.holds_in(plan.states[first + l]) for l, p in enumerate(seq))
+        if not holds:
+            raise AssertionError(f"conflict {seq} does not hold in the plan it came from at step {first}")
+        t0 = time.perf_counter()
+        new = self.planner.add_conflict(seq)
+        if not new:
+            # the planner already forbids it, yet proposed this plan: never loop forever
+            self.planner.block_plan(plan)
+        self.stats.logic_time += time.perf_counter() - t0
+        c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
+                     relaxation, self.stats.plans, first)
+        self.conflicts.append(c)
+        self.stats.conflicts += 1
+        self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}")
+
+    def result(self, status: str, message: str, **kw: Any) -> Result:
+        self.stats.total_time = time.perf_counter() - self.start
+        if self.db is not None:
+            self.db.close()
+        return Result(problem=self.compiled.name, domain=self.compiled.domain_name,
+                      algorithm=self.options.algorithm, switches=self.options.switches,
+                      seed=self.options.seed, status=status, message=message,
+                      conflicts=self.conflicts, stats=self.stats, time_limit=self.options.time_limit, **kw)
+
+    def stop_result(self, res: Any) -> Result:
+        from gnppdsl.logic.planner import Status
+
+        if res.status is Status.TIMEOUT or self.remaining() <= 0:
+            return self.result(TIME_LIMIT, f"time limit of {self.options.time_limit:g} s reached "
+                                           f"after {self.stats.plans} plans")
+        return self.result(NO_PLAN, res.message or "no plan")
+
+    # -- the loops -----------------------------------------------------------------------------
+    def solve(self) -> Result:
+        try:
+            if self.options.algorithm == "oneway":
+                return self.oneway()
+            return self.gnpp()
+        except _TimeUp:
+            return self.result(TIME_LIMIT, f"time limit of {self.options.time_limit:g} s reached "
+                                           f"after {self.stats.plans} plans")
+
+    def gnpp(self) -> Result:
+        from gnppdsl.nlp.subgraph import find_infeasible_subgraph
+
+        sw = self.options.switches
+        while True:
+            res = self.next_plan(enumerate_=False)
+            if not res.found:
+                return self.stop_result(res)
+            plan = res.plan
+            self.stats.plans += 1
+            if self.stats.N0 is None:
+                self.stats.N0 = len(plan)
+            self.say(f"plan #{self.stats.plans} (length {len(plan)}): {', '.join(plan.names) or '(empty)'}")
+            graph = self.build_graph(plan.states)
+            if self.db is not None:
+                known = self.db.infeasible_inside(graph)
+                if known:
+                    self.stats.db_infeasible_hits += 1
+                    self.add_conflict(plan, known, "database", "")
+                    continue
+            solver = self.new_solver()
+            checker = _Checker(self, solver, graph, use_db=self.db is not None)
+            search = find_infeasible_subgraph(graph, self.compiled.relaxations, sw.replace("g", ""),
+                                              check=checker, solver=solver,
+                                              tolerance=self.options.tolerance)
+            self.stats.nlp_solves += search.stats.heuristic_solves
+            if search.subgraph is not None:
+                self.add_conflict(plan, search.subgraph.factor_instances, "nlp",
+                                  "" if search.relaxation == "full" else (search.relaxation or ""))
+                continue
+            values = dict(search.values) if search.complete_values else {}
+            if not values:
+                # some components were answered by the database: solve the full graph for values
+                r = _Checker(self, solver, graph, use_db=False).solve(graph)
+                if not r.feasible:
+                    # the database claimed feasible but the solver disagrees: search without it
+                    s2 = find_infeasible_subgraph(graph, self.compiled.relaxations, sw.replace("g", ""),
+                                                  check=_Checker(self, self.new_solver(), graph, False),
+                                                  solver=self.new_solver(), tolerance=self.options.tolerance)
+                    if s2.subgraph is not None:
+                        self.add_conflict(plan, s2.subgraph.factor_instances, "nlp", s2.relaxation or "")
+                    else:
+                        self.planner.block_plan(plan)
+                    continue
+                values = r.values
+            return self.solution(plan, graph, values)
+
+    def oneway(self) -> Result:
+        while True:
+            res = self.next_plan(enumerate_=True)      # next_plan blocks the plan it returns
+            if not res.found:
+                return self.stop_result(res)
+            plan = res.plan
+            self.stats.plans += 1
+            if self.stats.N0 is None:
+                self.stats.N0 = len(plan)
+            self.say(f"plan #{self.stats.plans} (length {len(plan)}): {', '.join(plan.names) or '(empty)'}")
+            graph = self.build_graph(plan.states)
+            r = _Checker(self, self.new_solver(), graph, use_db=False).solve(graph)
+            if r.feasible:
+                return self.solution(plan, graph, r.values)
+            self.stats.conflicts += 1
+            self.conflicts.append(Conflict(tuple(PartialState.of(enumerate(s)) for s in plan.states),
+                                           "blocked plan: " + "; ".join(plan.names), (), "plan", "",
+                                           self.stats.plans, 0))
+
+    # -- solutions -----------------------------------------------------------------------------
+    def solution(self, plan: Any, graph: Any, values: dict) -> Result:
+        from gnppdsl.nlp.evaluate import max_violation
+
+        factors = graph.factor_instances
+        worst, arg = max_violation(factors, values, self.compiled.geometry)
+        bound_worst = bound_violation(graph.variables, values)
+        worst = max(worst, bound_worst)
+        self.stats.max_violation = worst
+        self.stats.N = len(plan)
+        self.stats.factors = len(factors)
+        self.stats.variables = len(graph.variables)
+        steps = []
+        for i, s in enumerate(plan.states):
+            st = Step(i, plan.names[i - 1] if i > 0 else None, self.task.state_str(s))
+            for v in graph.variables:
+                if v.step != i or v not in values:
+                    continue
+                x = np.asarray(values[v], float).reshape(-1)
+                if v.waypoints:
+                    st.trajectories[v.key] = x.reshape(v.waypoints, v.point_dim).tolist()
+                else:
+                    st.values[v.key] = x.tolist()
+            steps.append(st)
+        tol = self.options.check_tolerance or self.options.tolerance
+        extras = {"task": self.task, "plan": plan, "graph": graph, "values": values}
+        if not worst <= tol:
+            what = arg.label if arg is not None and worst > bound_worst else "a variable bound"
+            return self.result(SOLVER_FAILURE,
+                               f"the solver's solution fails the independent re-check: {what} "
+                               f"violated by {worst:.3g} > {tol:g}",
+                               plan=list(plan.names), steps=steps, extras=extras)
+        return self.result(SOLVED, f"solved with {len(plan)} actions after {self.stats.plans} plans",
+                           plan=list(plan.names), steps=steps, extras=extras)
+
+
+def bound_violation(variables: Iterable[VarInstance], values: dict) -> float:
+    """Largest violation of the variables' lower/upper bounds (part of the NLP, not factors)."""
+    worst = 0.0
+    for v in variables:
+        if v not in values:
+            continue
+        x = np.asarray(values[v], float).reshape(-1)
+        for bound, sign in ((v.lower, -1.0), (v.upper, 1.0)):
+            if bound is None:
+                continue
+            b = np.asarray(bound, float).reshape(-1)
+            if b.size != x.size and x.size % max(b.size, 1) == 0:
+                b = np.tile(b, x.size // b.size)     # per-point bounds of a trajectory
+            if b.size != x.size:
+                continue
+            d = sign * (x - b)
+            d = d[np.isfinite(d)]
+            if d.size:
+                worst = max(worst, float(d.max()))
+    return worst
+
+
+# ---------------------------------------------------------------------------------------------
+# entry points
+# ---------------------------------------------------------------------------------------------
+def solve_compiled(compiled: Compiled, options: SolveOptions | None = None,
+                   progress: Progress | None = None) -> Result:
+    """Solve an already compiled problem (a fresh planner, solver caches and database per call)."""
+    options = (options or SolveOptions.from_settings(getattr(compiled.problem, "settings", None))).validated()
+    return _Run(compiled, options, progress).solve()
+
+
+def solve_problem(problem: Any, options: SolveOptions | None = None, progress: Progress | None = None,
+                  **overrides: Any) -> Result:
+    """Solve a problem given as a path, a list of paths, an IR `Problem` or a `Compiled`.
+
+    Keyword overrides (algorithm, switches, time_limit, seed, ...) apply on top of `options`,
+    or of the problem's own solver settings when `options` is None.
+    """
+    if isinstance(problem, Compiled):
+        compiled = problem
+    elif isinstance(problem, (str, Path, list, tuple)):
+        compiled = load_and_compile(problem)
+    else:
+        compiled = compile_problem(problem)
+    if options is None:
+        options = SolveOptions.from_settings(getattr(compiled.problem, "settings", None), **overrides)
+    elif overrides:
+        options = replace(options, **{k: v for k, v in overrides.items() if v is not None}).validated()
+    return solve_compiled(compiled, options, progress)
