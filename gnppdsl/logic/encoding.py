@@ -1,0 +1,209 @@
+"""ASP encoding of a compiled SAS+ task for clingo's multi-shot incremental solving.
+
+Why generated: the encoding is the task's facts (variables, operators, axioms, goal, costs as
+integers) plus one domain-independent set of rules, so no domain is ever hand-encoded. The rules
+follow clingo's `incmode` layout (`base`, `step(t)`, `check(t)`, `#external query(t)`), so the
+text written by `gnpp compile --emit asp` also runs stand-alone with `clingo FILE`.
+
+Atoms
+- `holds(V,X,T)`: variable V has value X in state s_T (derived variables included);
+- `occurs(O,T)`: operator O is the T-th action (T = 1..n), exactly one per non-idle step;
+- `idle(T)`: step T does nothing (only a suffix of steps; used for "cheapest plan up to H"
+  and to cut a horizon shorter than the grounded one). Idle needs `allow_idle` or `after(T)`,
+  both externals that are false unless the planner sets them, so the stand-alone program
+  is the plain sequential encoding.
+- costs: `#minimize` over `cost(O,C)` and pair costs, active only with external `minimize_cost`.
+
+Conflicts (paper 000, Prop. 7.1) and blocked plans are separate step-parameterised programs
+(`conflict_program`, `block_program`): a constraint over the step parameter t must be grounded
+for every existing and every future step, because a rule grounded once does not see atoms of
+later steps.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+from gnppdsl.compile.sas import PartialState, SASTask
+
+_RULES_BASE = """\
+#program base.
+#external allow_idle.
+#external minimize_cost.
+holds(V,X,0) :- init(V,X).
+"""
+
+_RULES_STEP = """\
+#program step(t).
+#external after(t).
+{ idle(t) } :- allow_idle.
+idle(t) :- after(t).
+idle(t) :- idle(t-1).
+1 { occurs(O,t) : op(O) } 1 :- not idle(t).
+:- occurs(O,t), pre(O,V,X), not holds(V,X,t-1).
+holds(V,X,t) :- occurs(O,t), eff(O,V,X).
+changed(V,t) :- occurs(O,t), eff(O,V,_).
+fires(E,t) :- occurs(O,t), ceff(E,O,_,_), holds(C,Y,t-1) : cond(E,C,Y).
+holds(V,X,t) :- fires(E,t), ceff(E,_,V,X).
+changed(V,t) :- fires(E,t), ceff(E,_,V,_).
+:- fires(E,t), fires(F,t), clash(E,F).
+:- fires(E,t), uclash(E).
+holds(V,X,t) :- holds(V,X,t-1), svar(V), not changed(V,t).
+#minimize { C@0,t,op : occurs(O,t), cost(O,C), minimize_cost }.
+#minimize { C@0,t,pair : occurs(P,t-1), occurs(O,t), pcost(P,O,C), minimize_cost }.
+#minimize { C@0,t,first : occurs(O,t), pcost0(O,C), t = 1, minimize_cost }.
+"""
+
+_RULES_CHECK = """\
+#program check(t).
+#external query(t).
+:- query(t), goal(V,X), not holds(V,X,t).
+"""
+
+# derived variables: default value 0, axioms set other values (value 1 for booleans)
+_RULES_AXIOMS = """\
+holds(D,X,{T}) :- axiom(A,D,X), holds(V,Y,{T}) : acond(A,V,Y).
+holds(D,0,{T}) :- dvar(D), not holds(D,1,{T}).
+"""
+
+SHOW = "#show occurs/2.\n#show holds/3.\n#show idle/1.\n"
+
+
+def task_facts(task: SASTask) -> str:
+    """The task as ASP facts over integer indices (comments keep the names)."""
+    out: list[str] = []
+    add = out.append
+    add("% variables")
+    for i, var in enumerate(task.variables):
+        kind = "dvar" if var.is_derived else "svar"
+        add(f"{kind}({i}).  % {var.name}: {', '.join(var.values)}")
+        for x in range(len(var.values)):
+            add(f"val({i},{x}).")
+    add("% initial state (state variables) and goal")
+    for i, x in enumerate(task.initial):
+        if not task.variables[i].is_derived:
+            add(f"init({i},{x}).")
+    for v, x in task.goal.facts:
+        add(f"goal({v},{x}).")
+    add("% operators")
+    eid = 0
+    for o, op in enumerate(task.operators):
+        uncond = {e.var: e.value for e in op.effects if not e.conditions}
+        clash_uncond = any(
+            e.var in uncond and uncond[e.var] != e.value for e in op.effects if not e.conditions
+        )
+        if clash_uncond:
+            add(f"% {o}: {op.name} never applicable (contradictory effects)")
+            continue
+        add(f"op({o}).  % {op.name}")
+        if op.cost:
+            add(f"cost({o},{op.cost}).")
+        for v, x in op.pre:
+            add(f"pre({o},{v},{x}).")
+        cond_ids: list[tuple[int, int, int]] = []
+        for e in op.effects:
+            if not e.conditions:
+                add(f"eff({o},{e.var},{e.value}).")
+                continue
+            add(f"ceff({eid},{o},{e.var},{e.value}).")
+            for v, x in e.conditions:
+                add(f"cond({eid},{v},{x}).")
+            if e.var in uncond and uncond[e.var] != e.value:
+                add(f"uclash({eid}).")
+            for other, var, val in cond_ids:
+                if var == e.var and val != e.value:
+                    add(f"clash({other},{eid}).")
+            cond_ids.append((eid, e.var, e.value))
+            eid += 1
+    if task.pair_costs:
+        add("% costs of consecutive operator pairs")
+        for (prev, o), c in sorted(task.pair_costs.items(), key=lambda kv: (kv[0][0] is not None, kv[0])):
+            if c:
+                add(f"pcost0({o},{c})." if prev is None else f"pcost({prev},{o},{c}).")
+    if task.axioms:
+        add("% axioms")
+        for a, ax in enumerate(task.axioms):
+            if ax.value != 1:
+                raise ValueError(f"axiom {a} must set {task.variables[ax.var].name} to 1 (true)")
+            add(f"axiom({a},{ax.var},{ax.value}).")
+            for v, x in ax.conditions:
+                add(f"acond({a},{v},{x}).")
+    return "\n".join(out) + "\n"
+
+
+def encode_task(task: SASTask, standalone: bool = False) -> str:
+    """The complete ASP program for `task` (facts + generic incremental rules).
+
+    With `standalone=True` the text starts with `#include <incmode>.` so that plain
+    `clingo FILE` finds a shortest plan.
+    """
+    _check_task(task)
+    parts = []
+    if standalone:
+        parts.append(f"% {task.name}: run with `clingo FILE` (incremental mode)\n#include <incmode>.\n")
+    parts.append(_RULES_BASE)
+    parts.append(task_facts(task))
+    parts.append(_RULES_AXIOMS.format(T=0))
+    parts.append(_RULES_STEP)
+    parts.append(_RULES_AXIOMS.format(T="t"))
+    parts.append(_RULES_CHECK)
+    parts.append(SHOW)
+    return "\n".join(parts)
+
+
+def conflict_program(name: str, seq: Sequence[PartialState]) -> str:
+    """`#program NAME(t).` forbidding s_{t-L} ⊇ p_0, ..., s_t ⊇ p_L (ground it for every t).
+
+    The match must end at a real (non-idle) state; `t >= L` keeps empty partial states sound.
+    """
+    L = len(seq) - 1
+    if L < 0:
+        raise ValueError("a conflict needs at least one partial state")
+    body = []
+    for l, p in enumerate(seq):
+        off = L - l
+        tt = "t" if off == 0 else f"t-{off}"
+        body.extend(f"holds({v},{x},{tt})" for v, x in p.facts)
+    body.extend(["not idle(t)", f"t >= {L}"])
+    return f"#program {name}(t).\n:- {', '.join(body)}.\n"
+
+
+def block_program(name: str, ops: Sequence[int]) -> str:
+    """`#program NAME(t).` forbidding exactly the plan `ops` (ground it for t = n and n + 1).
+
+    At t = n the plan is blocked when n is the queried horizon; at t = n + 1 when the step
+    after the plan is idle (cheapest-plan mode or a cut horizon).
+    """
+    n = len(ops)
+    occ = [f"occurs({o},{i})" for i, o in enumerate(ops, start=1)]
+    r1 = ", ".join(occ + ["query(t)", f"t = {n}"])
+    r2 = ", ".join(occ + ["idle(t)", f"t = {n + 1}"])
+    return f"#program {name}(t).\n:- {r1}.\n:- {r2}.\n"
+
+
+def _check_task(task: SASTask) -> None:
+    """Reject tasks the encoding (and SAS+) cannot mean: wrong indices or derived defaults."""
+    nvars = len(task.variables)
+    if len(task.initial) != nvars:
+        raise ValueError(f"initial state has {len(task.initial)} values for {nvars} variables")
+
+    def ok(f) -> bool:
+        v, x = f
+        return 0 <= v < nvars and 0 <= x < len(task.variables[v].values)
+
+    for i, x in enumerate(task.initial):
+        if not ok((i, x)):
+            raise ValueError(f"initial value {x} out of range for {task.variables[i].name}")
+    bad = [f for f in task.goal.facts if not ok(f)]
+    for op in task.operators:
+        bad += [f for f in op.pre if not ok(f)]
+        for e in op.effects:
+            bad += [f for f in e.conditions if not ok(f)]
+            bad += [] if ok((e.var, e.value)) else [(e.var, e.value)]
+            if task.variables[e.var].is_derived:
+                raise ValueError(f"operator {op.name} assigns derived variable {task.variables[e.var].name}")
+    for ax in task.axioms:
+        bad += [f for f in ax.conditions if not ok(f)]
+        if not task.variables[ax.var].is_derived:
+            raise ValueError(f"axiom sets state variable {task.variables[ax.var].name}")
+    if bad:
+        raise ValueError(f"facts out of range: {bad[:5]}")

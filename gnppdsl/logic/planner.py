@@ -1,0 +1,327 @@
+"""Incremental symbolic planner: clingo multi-shot solving with conflicts as blocking constraints.
+
+Why multi-shot: the Graph-NLP Planner (paper 000, Fig. 3) asks for a plan, learns a conflict
+<p_0 .. p_L> from the continuous level, and asks again, many times. Regrounding the task each
+time would dominate the run time, so one clingo `Control` lives as long as the planner:
+- the task is grounded once (`base`), one `step(t)`/`check(t)` per horizon t;
+- `add_conflict` adds a step-parameterised program, grounds it for all existing steps at once
+  and for every later step together with `step(t)` (a rule grounded once would not constrain
+  atoms of later steps);
+- `block_plan` forbids one whole plan (the One-way baseline);
+- horizons only grow: constraints only remove plans, so a horizon proven empty stays empty.
+
+Results are values, not exceptions: `PlanResult.status` says found / no plan up to H / time
+limit, with a message for users; `PlanResult.unwrap()` raises `SolveFailure` when wanted.
+"""
+from __future__ import annotations
+
+import enum
+import time
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import clingo
+
+from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.errors import SolveFailure
+from gnppdsl.logic.encoding import block_program, conflict_program, encode_task
+from gnppdsl.logic.validate import State, plan_cost
+
+DEFAULT_MAX_HORIZON = 64
+
+
+class Status(enum.Enum):
+    FOUND = "found"
+    NO_PLAN = "no plan"          # proven: no plan up to the horizon (under all constraints)
+    TIMEOUT = "time limit"       # the time limit ran out before an answer
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A logic plan: operators a_1..a_n and the full states s_0..s_n (derived values included)."""
+
+    operators: tuple[int, ...]
+    names: tuple[str, ...]
+    states: tuple[State, ...]
+    cost: int
+    shortest: bool = False   # proven: no shorter plan exists under the current constraints
+    optimal: bool = False    # proven: no cheaper plan (up to the horizon / of this length)
+
+    def __len__(self) -> int:
+        return len(self.operators)
+
+    def __bool__(self) -> bool:   # the empty plan is a plan
+        return True
+
+    def __str__(self) -> str:
+        return "\n".join(f"{i}: {n}" for i, n in enumerate(self.names, start=1)) or "(empty plan)"
+
+
+@dataclass
+class PlanResult:
+    status: Status
+    plan: Plan | None
+    horizon: int              # largest horizon examined
+    time: float               # wall time of the call (grounding + solving)
+    message: str = ""
+
+    @property
+    def found(self) -> bool:
+        return self.status is Status.FOUND
+
+    def unwrap(self) -> Plan:
+        """The plan, or `SolveFailure` with the message (for the CLI)."""
+        if self.plan is None:
+            raise SolveFailure(self.message)
+        return self.plan
+
+
+@dataclass
+class PlannerStats:
+    ground_calls: int = 0                       # calls to Control.ground
+    grounded_parts: list[tuple[str, tuple[int, ...]]] = field(default_factory=list)
+    solve_calls: int = 0
+    ground_time: float = 0.0
+    solve_time: float = 0.0                     # clingo's own solve time (summed)
+
+    def count(self, program: str) -> int:
+        """How often program part `program` was grounded (any parameters)."""
+        return sum(1 for name, _ in self.grounded_parts if name == program)
+
+
+@dataclass
+class _Persistent:
+    """A step-parameterised program grounded for t in [first, last] (last None: all t)."""
+
+    name: str
+    first: int = 0
+    last: int | None = None
+
+    def covers(self, t: int) -> bool:
+        return t >= self.first and (self.last is None or t <= self.last)
+
+
+class IncrementalPlanner:
+    """Shortest plans, plan enumeration and cheapest plans for one SAS+ task.
+
+    Parameters: `max_horizon` bounds the search when a call does not give its own bound;
+    `clingo_args` are passed to `clingo.Control` (e.g. `["--configuration=frumpy"]`).
+    """
+
+    def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON,
+                 clingo_args: Sequence[str] = ()) -> None:
+        self.task = task
+        self.max_horizon = max_horizon
+        self.stats = PlannerStats()
+        self.conflicts: list[tuple[PartialState, ...]] = []
+        self.blocked: list[tuple[int, ...]] = []
+        self._conflict_set: set[tuple[PartialState, ...]] = set()
+        self._blocked_set: set[tuple[int, ...]] = set()
+        self._persistent: list[_Persistent] = []
+        self._ctl = clingo.Control(["--warn=none", *clingo_args])
+        self._ctl.add("base", [], encode_task(task))
+        self._externals: dict[clingo.Symbol, bool] = {}
+        self._horizon = 0            # steps grounded: 1..horizon
+        self._lowest = 0             # smallest horizon that may still hold a plan
+        self._ground([("base", ()), ("check", (0,))])
+
+    # ---- grounding ---------------------------------------------------------------------
+    @property
+    def horizon(self) -> int:
+        """The largest grounded step."""
+        return self._horizon
+
+    def _ground(self, parts: list[tuple[str, tuple[int, ...]]]) -> None:
+        t0 = time.perf_counter()
+        self._ctl.ground([(n, [clingo.Number(a) for a in args]) for n, args in parts])
+        self.stats.ground_time += time.perf_counter() - t0
+        self.stats.ground_calls += 1
+        self.stats.grounded_parts.extend(parts)
+
+    def _extend_to(self, h: int) -> None:
+        for t in range(self._horizon + 1, h + 1):
+            parts = [("step", (t,)), ("check", (t,))]
+            parts += [(p.name, (t,)) for p in self._persistent if p.covers(t)]
+            self._ground(parts)
+            self._horizon = t
+
+    def _add_persistent(self, prog: _Persistent, text: str) -> None:
+        self._ctl.add(prog.name, ["t"], text)
+        self._persistent.append(prog)
+        now = [(prog.name, (t,)) for t in range(0, self._horizon + 1) if prog.covers(t)]
+        if now:
+            self._ground(now)
+
+    # ---- constraints -------------------------------------------------------------------
+    def add_conflict(self, seq: Sequence[PartialState]) -> bool:
+        """Forbid every plan whose states contain s_i ⊇ p_0, ..., s_{i+L} ⊇ p_L (any i).
+
+        Returns False if the same conflict was added before (nothing to do).
+        """
+        seq = tuple(seq)
+        self._check_partial_states(seq)
+        if seq in self._conflict_set:
+            return False
+        name = f"conflict_{len(self.conflicts)}"
+        self._add_persistent(_Persistent(name), conflict_program(name, seq))
+        self.conflicts.append(seq)
+        self._conflict_set.add(seq)
+        return True
+
+    def add_conflicts(self, seqs: Iterable[Sequence[PartialState]]) -> int:
+        return sum(self.add_conflict(s) for s in seqs)
+
+    def block_plan(self, plan: Plan | Sequence[int]) -> bool:
+        """Forbid exactly this plan (its operator sequence at its length); False if known."""
+        ops = tuple(getattr(plan, "operators", plan))
+        if ops in self._blocked_set:
+            return False
+        if any(not 0 <= o < len(self.task.operators) for o in ops):
+            raise ValueError(f"plan refers to unknown operators: {ops}")
+        name = f"block_{len(self.blocked)}"
+        n = len(ops)
+        self._add_persistent(_Persistent(name, n, n + 1), block_program(name, ops))
+        self.blocked.append(ops)
+        self._blocked_set.add(ops)
+        return True
+
+    def _check_partial_states(self, seq: Sequence[PartialState]) -> None:
+        if not seq:
+            raise ValueError("a conflict needs at least one partial state")
+        for p in seq:
+            for v, x in p.facts:
+                if not (0 <= v < len(self.task.variables) and 0 <= x < len(self.task.variables[v].values)):
+                    raise ValueError(f"fact ({v}, {x}) is not a fact of task {self.task.name}")
+
+    # ---- solving -----------------------------------------------------------------------
+    def _set_externals(self, query: int, cut: bool, idle: bool, minimize: bool) -> None:
+        want: dict[clingo.Symbol, bool] = {
+            clingo.Function("allow_idle"): idle,
+            clingo.Function("minimize_cost"): minimize,
+        }
+        for t in range(0, self._horizon + 1):
+            want[clingo.Function("query", [clingo.Number(t)])] = t == query
+            if t >= 1:
+                want[clingo.Function("after", [clingo.Number(t)])] = cut and t > query
+        for sym, val in want.items():
+            if self._externals.get(sym, False) != val:
+                self._ctl.assign_external(sym, val)
+                self._externals[sym] = val
+        self._ctl.configuration.solve.opt_mode = "opt" if minimize else "ignore"
+
+    def _solve(self, deadline: float | None):
+        """One solve call; returns (status, best model symbols or None, proven optimal)."""
+        best: list = [None]
+        proven = [False]
+
+        def on_model(model: clingo.Model) -> None:
+            best[0] = model.symbols(shown=True)
+            proven[0] = model.optimality_proven
+
+        self.stats.solve_calls += 1
+        with self._ctl.solve(on_model=on_model, async_=True) as handle:
+            while True:
+                wait = 0.05 if deadline is None else max(0.0, min(0.05, deadline - time.perf_counter()))
+                if handle.wait(wait):
+                    break
+                if deadline is not None and time.perf_counter() >= deadline:
+                    handle.cancel()
+                    break
+            result = handle.get()
+        self.stats.solve_time += self._ctl.statistics["summary"]["times"]["solve"]
+        if result.interrupted or (not result.exhausted and not result.satisfiable and not result.unsatisfiable):
+            return Status.TIMEOUT, best[0], False
+        if result.satisfiable:
+            return Status.FOUND, best[0], proven[0] or result.exhausted
+        return Status.NO_PLAN, None, False
+
+    def _plan_from(self, symbols, shortest: bool, optimal: bool) -> Plan:
+        occ: dict[int, int] = {}
+        holds: dict[int, dict[int, int]] = {}
+        for s in symbols:
+            if s.name == "occurs":
+                occ[s.arguments[1].number] = s.arguments[0].number
+            elif s.name == "holds":
+                v, x, t = (a.number for a in s.arguments)
+                holds.setdefault(t, {})[v] = x
+        n = len(occ)
+        assert sorted(occ) == list(range(1, n + 1)), f"non-contiguous plan steps {sorted(occ)}"
+        ops = tuple(occ[t] for t in range(1, n + 1))
+        nv = len(self.task.variables)
+        states = tuple(tuple(holds[t][v] for v in range(nv)) for t in range(n + 1))
+        return Plan(ops, tuple(self.task.operators[o].name for o in ops), states,
+                    plan_cost(self.task, ops), shortest, optimal)
+
+    @staticmethod
+    def _deadline(time_limit: float | None) -> float | None:
+        return None if time_limit is None else time.perf_counter() + time_limit
+
+    def shortest_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
+                      minimize_cost: bool = False) -> PlanResult:
+        """The shortest plan under all conflicts and blocked plans (not blocked by this call).
+
+        With `minimize_cost` the cheapest among the shortest plans is returned.
+        """
+        start = time.perf_counter()
+        deadline = self._deadline(time_limit)
+        H = self.max_horizon if max_horizon is None else max_horizon
+        h = self._lowest
+        while h <= H:
+            if deadline is not None and time.perf_counter() >= deadline:
+                return self._timeout(h, start, time_limit)
+            self._extend_to(h)
+            self._set_externals(query=h, cut=True, idle=False, minimize=minimize_cost)
+            status, model, proven = self._solve(deadline)
+            if status is Status.FOUND:
+                plan = self._plan_from(model, shortest=True, optimal=minimize_cost and proven)
+                return PlanResult(Status.FOUND, plan, h, time.perf_counter() - start,
+                                  f"found a plan of length {h}")
+            if status is Status.TIMEOUT:
+                return self._timeout(h, start, time_limit)
+            self._lowest = h = h + 1
+        return PlanResult(Status.NO_PLAN, None, H, time.perf_counter() - start,
+                          self._no_plan_message(H))
+
+    def next_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
+                  minimize_cost: bool = False) -> PlanResult:
+        """Enumerate plans in order of length, each once: the shortest plan, then blocked."""
+        result = self.shortest_plan(max_horizon, time_limit, minimize_cost)
+        if result.plan is not None:
+            self.block_plan(result.plan)
+        return result
+
+    def optimal_plan(self, horizon: int, time_limit: float | None = None) -> PlanResult:
+        """The cheapest plan of length <= `horizon` (operator costs + pair costs).
+
+        `plan.optimal` says whether clingo proved optimality before the time limit; a plan
+        found before the limit is returned even when not proven.
+        """
+        start = time.perf_counter()
+        deadline = self._deadline(time_limit)
+        self._extend_to(horizon)
+        self._set_externals(query=horizon, cut=False, idle=True, minimize=True)
+        status, model, proven = self._solve(deadline)
+        elapsed = time.perf_counter() - start
+        if model is not None:
+            plan = self._plan_from(model, shortest=False, optimal=status is Status.FOUND and proven)
+            note = "optimal" if plan.optimal else "best found before the time limit (not proven optimal)"
+            return PlanResult(Status.FOUND, plan, horizon, elapsed,
+                              f"plan of length {len(plan)} and cost {plan.cost}, {note}")
+        if status is Status.TIMEOUT:
+            return self._timeout(horizon, start, time_limit)
+        return PlanResult(Status.NO_PLAN, None, horizon, elapsed, self._no_plan_message(horizon))
+
+    # ---- messages ----------------------------------------------------------------------
+    def _no_plan_message(self, H: int) -> str:
+        extra = []
+        if self.conflicts:
+            extra.append(f"{len(self.conflicts)} conflicts")
+        if self.blocked:
+            extra.append(f"{len(self.blocked)} blocked plans")
+        under = f" under {' and '.join(extra)}" if extra else ""
+        return f"no plan up to horizon {H} for task {self.task.name}{under}"
+
+    def _timeout(self, h: int, start: float, limit: float | None) -> PlanResult:
+        return PlanResult(Status.TIMEOUT, None, h, time.perf_counter() - start,
+                          f"time limit of {limit:g} s reached at horizon {h} for task "
+                          f"{self.task.name} (no plan shorter than {h})")

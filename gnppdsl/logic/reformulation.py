@@ -1,0 +1,96 @@
+"""Appendix B of paper 000: forbid a sequence of partial states by a SAS+ -> SAS+ compilation.
+
+Why: with the conflicts compiled into the task itself, any SAS+ planner (Fast Downward on the
+written `.sas`) plans under them; the tests use this as an independent oracle for the ASP
+planner, and `gnpp compile --conflicts FILE --emit sas` writes it.
+
+The construction (for one conflict <p_0 .. p_L>, new variables b_0 .. b_L):
+- b_l (l < L) is a state variable with b_l = 1 in s_k iff p_0 ⊆ s_{k-1-l}, ..., p_l ⊆ s_{k-1},
+  i.e. the first l+1 elements match ending at the *previous* state. Every operator updates them
+  with conditional effects evaluated, as SAS+ prescribes, in the state it is applied in:
+      b_0 := 1 if p_0 holds,                  b_0 := 0 if some fact of p_0 does not hold;
+      b_l := 1 if b_{l-1} = 1 and p_l holds,  b_l := 0 if b_{l-1} = 0 or a fact of p_l fails.
+  ("a fact (v, x) fails" is one condition v = y per other value y, so no disjunctions.)
+- b_L is a derived variable (axiom: b_{L-1} = 1 and p_L ⇒ b_L), i.e. the whole sequence ends
+  at the current state. Every operator gets the precondition b_L = 0 and the goal gets b_L = 0.
+
+So a plan is valid for the new task iff it is valid for the old one and no s_i ⊇ p_0, ...,
+s_{i+L} ⊇ p_L occurs (Proposition 7.1). This is the paper's compilation shifted by one state:
+the paper's b_l "becomes true when a makes p_l true" needs p_l evaluated in the successor state,
+which a SAS+ condition cannot see when p_l mentions a derived variable or a variable under a
+conditional effect; the paper's reset b_{l-1} := 0 also loses overlapping matches
+(e.g. <X, X, Y> on X X X Y). Evaluating p_l in the current state (with axioms) avoids both.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Iterable, Sequence
+
+from gnppdsl.compile.sas import Axiom, Effect, Fact, PartialState, SASTask, SASVariable
+
+BOOL = ("false", "true")
+
+
+def _fails(task: SASTask, p: PartialState) -> list[Fact]:
+    """Facts each of which alone makes `p` false: (v, y) for (v, x) in p and every y != x."""
+    return [(v, y) for v, x in p.facts for y in range(len(task.variables[v].values)) if y != x]
+
+
+def _fresh_prefix(task: SASTask) -> str:
+    names = {v.name for v in task.variables}
+    k = 0
+    while any(n.startswith(f"forbid{k}_") for n in names):
+        k += 1
+    return f"forbid{k}"
+
+
+def forbid_sequence(task: SASTask, seq: Sequence[PartialState], prefix: str | None = None) -> SASTask:
+    """A new task whose plans are those of `task` in which <p_0 .. p_L> never occurs."""
+    seq = tuple(seq)
+    if not seq:
+        raise ValueError("a conflict needs at least one partial state")
+    for p in seq:
+        for v, x in p.facts:
+            if not (0 <= v < len(task.variables) and 0 <= x < len(task.variables[v].values)):
+                raise ValueError(f"fact ({v}, {x}) is not a fact of task {task.name}")
+    prefix = prefix or _fresh_prefix(task)
+    L = len(seq) - 1
+    n = len(task.variables)
+    b = [n + l for l in range(L + 1)]                # indices of b_0 .. b_L
+    layer = 1 + max((task.variables[v].axiom_layer for p in seq for v, _ in p.facts), default=-1)
+    layer = max(layer, 0)
+    variables = list(task.variables)
+    variables += [SASVariable(f"{prefix}_b{l}", BOOL) for l in range(L)]
+    variables.append(SASVariable(f"{prefix}_b{L}", BOOL, axiom_layer=layer))
+
+    extra: list[Effect] = []
+    for l in range(L):
+        p = seq[l]
+        guard = () if l == 0 else ((b[l - 1], 1),)
+        extra.append(Effect(b[l], 1, guard + p.facts))
+        if l > 0:
+            extra.append(Effect(b[l], 0, ((b[l - 1], 0),)))
+        extra.extend(Effect(b[l], 0, (f,)) for f in _fails(task, p))
+    guard = () if L == 0 else ((b[L - 1], 1),)
+    axiom = Axiom(guard + seq[L].facts, b[L], 1)
+
+    operators = [
+        replace(op, pre=tuple(op.pre) + ((b[L], 0),), effects=tuple(op.effects) + tuple(extra))
+        for op in task.operators
+    ]
+    return SASTask(
+        variables=variables,
+        initial=tuple(task.initial) + (0,) * (L + 1),
+        goal=task.goal.union(PartialState(((b[L], 0),))),
+        operators=operators,
+        axioms=list(task.axioms) + [axiom],
+        pair_costs=dict(task.pair_costs),
+        name=task.name,
+    )
+
+
+def forbid_sequences(task: SASTask, seqs: Iterable[Sequence[PartialState]]) -> SASTask:
+    """Forbid several conflicts by iterated reformulation (paper: "iterative reformulation")."""
+    for k, seq in enumerate(seqs):
+        task = forbid_sequence(task, seq, prefix=None)
+    return task
