@@ -113,7 +113,11 @@ class DiscGeometry:
         yaw = np.array([[math.cos(t), -math.sin(t), 0], [math.sin(t), math.cos(t), 0], [0, 0, 1]])
         Rw = R @ yaw
         from gnppdsl.nlp.evaluate import _quat  # matrix -> quaternion helper of the checker
-        return np.concatenate([base[:3] + R @ p, _quat(Rw)])
+        # q and -q are the same rotation: pick the sign of base_q * yaw_q like the casadi path
+        bq, yq = np.asarray(base[3:7], float), np.array([0, 0, math.sin(t / 2), math.cos(t / 2)])
+        like = np.concatenate([bq[3] * yq[:3] + yq[3] * bq[:3] + np.cross(bq[:3], yq[:3]),
+                               [bq[3] * yq[3] - bq[:3] @ yq[:3]]])
+        return np.concatenate([base[:3] + R @ p, _quat(Rw, like=like)])
 
     def sdist(self, a, pa, b, pb):
         import casadi as ca

@@ -1,0 +1,165 @@
+"""Elastic feasibility: verdicts, solutions re-checked independently, starts, bounds, MX."""
+from __future__ import annotations
+
+import math
+import time
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from gnppdsl.compile.factors import VarInstance
+from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Vec
+from gnppdsl.nlp.evaluate import max_violation
+from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions, solve_feasibility
+from gnppdsl.nlp.geometry_protocol import Body
+from gnppdsl.nlp.graph import GraphNLP
+
+from nlp_toys import C, DiscGeometry, chain, discs, factor, pose
+
+TOL = 1e-6
+
+
+def confirm_infeasible(graph, starts=8, geometry=None):
+    """Multi-start re-solve: no start of a fresh solver finds a feasible point."""
+    s = FeasibilitySolver(geometry, SolverOptions(restarts=0, noise=1.0))
+    return all(not s.solve(graph, seed=100 + k).feasible for k in range(starts))
+
+
+@pytest.mark.parametrize("n,feasible", [(1, True), (2, True), (3, False)])
+def test_discs_verdict_and_independent_recheck(n, feasible):
+    vs, fs = discs(n)
+    g = GraphNLP(fs)
+    t = time.perf_counter()
+    r = solve_feasibility(g, tolerance=TOL)
+    print(f"discs({n}): {r.feasible} in {1e3 * (time.perf_counter() - t):.1f} ms, "
+          f"{r.iterations} iterations, {r.starts} start(s)")
+    assert r.feasible is feasible
+    worst, _ = max_violation(fs, r.values)          # independent numpy evaluation
+    assert (worst <= TOL) is feasible
+    assert r.max_violation == pytest.approx(worst, abs=1e-9)
+    if not feasible:
+        assert r.violated(TOL) and confirm_infeasible(g)
+        # three unit discs in a 1.6 x 1.6 box: some pair is closer than 2 (optimum packing
+        # of 3 points in a square of side L has min distance about 1.035 L = 1.66)
+        pos = [r.values[v][:2] for v in vs]
+        assert min(np.linalg.norm(pos[i] - pos[j]) for i in range(3) for j in range(i)) < 2
+
+
+def test_chain_feasible_without_conflict_and_values_cover_all_variables():
+    vs, fs = chain(10, conflict_at=None)
+    g = GraphNLP(fs)
+    r = solve_feasibility(g)
+    assert r.feasible and set(r.values) == set(vs)
+    assert max_violation(fs, r.values)[0] <= TOL
+    assert r.values[vs[0]] == pytest.approx([-3.0, 0.0, 0.0], abs=1e-6)
+
+
+def test_warm_start_and_initial_guess():
+    vs, fs = chain(10, conflict_at=None)
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    cold = s.solve(g)
+    warm = s.solve(g, warm_start=cold.values)
+    print(f"chain(10): cold {cold.iterations} it {1e3 * cold.solve_time:.1f} ms, "
+          f"warm {warm.iterations} it {1e3 * warm.solve_time:.1f} ms")
+    assert warm.feasible and max_violation(fs, warm.values)[0] <= TOL
+    # a solution used as the start stays (almost) where it is: the pull is towards the start
+    assert max(np.abs(warm.values[v] - cold.values[v]).max() for v in vs) < 1e-3
+    g.initial_guess = {v: np.array([5.0, 1.0, 0.0]) for v in vs[1:]}
+    r = s.solve(g)
+    assert r.feasible and r.values[vs[5]][1] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_se3_unit_quaternion_and_joint_bounds():
+    P = VarInstance("pose", ("o",), 0, "SE3", 7)
+    J = VarInstance("q", ("r",), 0, "joints", 2, lower=(-0.5, 0.2), upper=(0.5, 0.4))
+    # z axis of the pose must point along world x; the joints must sum to 1 (infeasible with
+    # the bounds: at most 0.9) -> elastic optimum keeps the joints at their upper bounds
+    fz = factor("t.axis", [P], [Constraint(C("axis_se3", Slot(0), Num(2)), "==",
+                                           Vec((Num(1.0), Num(0.0), Num(0.0))))], 0)
+    fj = factor("t.sum", [J], [Constraint(C("sum", Slot(0)), ">=", Num(1.0))], 0)
+    g = GraphNLP([fz, fj])
+    r = solve_feasibility(g)
+    assert not r.feasible
+    assert np.linalg.norm(r.values[P][3:]) == pytest.approx(1.0, abs=1e-9)
+    assert r.values[J] == pytest.approx([0.5, 0.4], abs=1e-6)
+    assert r.violated(TOL) == [g.factor_refs[1]]
+    sub = g.subgraph(factors=[0])
+    r2 = solve_feasibility(sub)
+    assert r2.feasible and max_violation([fz], r2.values)[0] <= TOL
+
+
+def test_tolerance_is_configurable():
+    v = pose("b", 0)
+    f = factor("t.near", [v], [Constraint(C("sqnorm", C("pos_se2", Slot(0))), "<=", Num(-1e-5))], 0)
+    g = GraphNLP([f])
+    assert not solve_feasibility(g, tolerance=1e-6).feasible
+    assert solve_feasibility(g, tolerance=1e-4).feasible
+
+
+class _Dist2(ca.Callback):
+    """Planar distance between disc centres minus radii as an opaque MX node with a Jacobian,
+    the way gnppdsl.geometry wraps coal (test stand-in)."""
+
+    def __init__(self, name, radius):
+        ca.Callback.__init__(self)
+        self.radius = radius
+        self.construct(name, {})
+
+    def get_n_in(self):
+        return 2
+
+    def get_n_out(self):
+        return 1
+
+    def get_sparsity_in(self, i):
+        return ca.Sparsity.dense(3, 1)
+
+    def get_sparsity_out(self, i):
+        return ca.Sparsity.dense(1, 1)
+
+    def eval(self, arg):
+        a, b = np.asarray(arg[0]).ravel(), np.asarray(arg[1]).ravel()
+        return [float(np.linalg.norm(a[:2] - b[:2])) - self.radius]
+
+    def has_jacobian(self):
+        return True
+
+    def get_jacobian(self, name, inames, onames, opts):
+        a, b, out = ca.MX.sym("a", 3), ca.MX.sym("b", 3), ca.MX.sym("out", 1, 1)
+        d = a[:2] - b[:2]
+        n = d / ca.sqrt(ca.sumsqr(d) + 1e-18)
+        return ca.Function(name, [a, b, out], [ca.horzcat(n.T, 0), ca.horzcat(-n.T, 0)],
+                           inames, onames, opts)
+
+
+class CallbackGeometry(DiscGeometry):
+    def __init__(self, radii):
+        super().__init__(radii)
+        self._cbs = {}
+
+    def needs_mx(self, primitive):
+        return primitive == "sdist2"
+
+    def sdist2(self, a, pa, b, pb):
+        key = (str(a), str(b))
+        if key not in self._cbs:
+            self._cbs[key] = _Dist2(f"d_{len(self._cbs)}", self._r(a) + self._r(b))
+        return self._cbs[key](pa, pb)
+
+
+@pytest.mark.parametrize("n,feasible", [(2, True), (3, False)])
+def test_mx_callback_geometry_in_assembly(n, feasible):
+    geo = CallbackGeometry({f"b{i}": 1.0 for i in range(n)})
+    vs = [pose(f"b{i}", 0) for i in range(n)]
+    from nlp_toys import in_box
+    fs = [in_box(v, 0.8, 0) for v in vs]
+    fs += [factor("toy.sd", [vs[i], vs[j]], [Constraint(
+        C("sdist2", Obj(f"b{i}"), Slot(0), Obj(f"b{j}"), Slot(1)), ">=", Num(0.0))], 0)
+        for i in range(n) for j in range(i + 1, n)]
+    s = FeasibilitySolver(geo)
+    r = s.solve(GraphNLP(fs))
+    assert s.compiler.compile(fs[-1])[0].symbolic == "MX"
+    assert r.feasible is feasible
+    assert (max_violation(fs, r.values, geo)[0] <= TOL) is feasible

@@ -1,0 +1,70 @@
+"""GraphNLP: Definition 4.2 subgraphs, relaxations, components, time slices."""
+from __future__ import annotations
+
+import networkx as nx
+
+from gnppdsl.compile.factors import VarInstance
+from gnppdsl.nlp.graph import FactorRef, GraphNLP
+
+from nlp_toys import chain, discs, factor, no_overlap, pose, in_box
+from gnppdsl.ir.expr import Constraint, Num, Slot
+
+
+def test_bipartite_structure_and_labels():
+    vs, fs = discs(3)
+    g = GraphNLP(fs)
+    assert nx.is_bipartite(g.graph)
+    assert g.n_factors == 6 and set(g.variables) == set(vs)
+    for r, f in g.iter_factor_vars():
+        assert set(g.neighbours(r)) == set(f.variables)
+        assert g.graph.nodes[r]["label"] == f.template
+    assert g.graph.nodes[vs[0]]["label"] == "pose(b0)"
+    assert g.graph.nodes[vs[0]]["kind"] == "pose"
+    assert g.graph.edges[FactorRef(3), vs[1]]["slots"] == (1,)
+
+
+def test_subgraph_definition_4_2():
+    vs, fs = discs(3)
+    g = GraphNLP(fs)
+    m = g.subgraph(variables=vs[:2])
+    # keeps in_box(b0), in_box(b1), no_overlap(b0, b1); drops factors touching b2
+    assert {g.factor(r).label for r in m.factor_refs} == {fs[0].label, fs[1].label, fs[3].label}
+    assert all(set(m.neighbours(r)) <= set(vs[:2]) for r in m.factor_refs)
+    spanned = g.subgraph(factors=[3])
+    assert set(spanned.variables) == {vs[0], vs[1]} and spanned.factor_refs == [FactorRef(3)]
+    both = g.subgraph(variables=[vs[0]], factors=[0, 3])
+    assert both.factor_refs == [FactorRef(0)]
+    # subgraphs share the full factor list and their vertices are vertices of G
+    assert m.factors is g.factors and set(m.graph) <= set(g.graph)
+
+
+def test_relaxation_drops_tagged_variables_and_their_factors():
+    vs, fs = discs(2)
+    robot = VarInstance("q", ("r",), 0, "SE2", 3, frozenset({"robot"}))
+    fs = fs + [no_overlap(robot, vs[0], 0.1, 1.0, 0, tags=("robotcol",)),
+               factor("toy.home", [robot], [Constraint(Slot(0), "==", Num(0.0))], 0, ("init",))]
+    g = GraphNLP(fs)
+    r = g.apply_relaxation({"robot"})
+    assert robot not in r and all(robot not in r.factor(x).variables for x in r.factor_refs)
+    assert r.n_factors == 3
+    r2 = g.apply_relaxation({"collision"})
+    assert {r2.factor(x).template for x in r2.factor_refs} == {"toy.in_box", "toy.no_overlap",
+                                                               "toy.home"}
+    assert r2.n_factors == 4
+
+
+def test_connected_components_and_time_slice():
+    vs, fs = discs(3)
+    g = GraphNLP(fs).apply_relaxation({"collision"})
+    comps = g.connected_components()
+    assert len(comps) == 3 and all(c.n_factors == 1 for c in comps)
+    vs, fs = chain(6)
+    g = GraphNLP(fs)
+    assert g.steps == (0, 6)
+    s = g.time_slice(3, 4)
+    assert {s.factor(r).template for r in s.factor_refs} == {"toy.move", "toy.left", "toy.right"}
+    assert {v.step for v in s.variables} == {3, 4}
+    assert g.time_slice(2, 2).n_factors == 0          # a transition factor needs both ends
+    assert g.time_slice(0, 6).signature() == g.signature()
+    rel = s.relative_labels()
+    assert sorted(d["rel_step"] for _, d in rel.nodes(data=True)) == [0, 0, 0, 1, 1]

@@ -1,0 +1,162 @@
+"""Algorithm 1: double binary search, relaxations, convergence heuristic; conflicts are real."""
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+
+from gnppdsl.compile.factors import VarInstance
+from gnppdsl.ir.expr import Constraint, Index, Num, Slot
+from gnppdsl.nlp.evaluate import max_violation
+from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+from gnppdsl.nlp.graph import GraphNLP
+from gnppdsl.nlp.subgraph import (Relaxation, binary_search_time, convergence_heuristic,
+                                  find_infeasible_subgraph)
+
+from nlp_toys import C, chain, discs, factor, in_box, no_overlap, pose
+from test_nlp_feasibility import confirm_infeasible
+
+TOL = 1e-6
+
+
+def templates(g):
+    return sorted((g.factor(r).template, g.factor(r).step) for r in g.factor_refs)
+
+
+@pytest.mark.parametrize("n", [6, 16, 40])
+def test_chain_conflict_is_exactly_steps_3_4_with_log_solves(n):
+    vs, fs = chain(n, conflict_at=3)
+    g = GraphNLP(fs)
+    t = time.perf_counter()
+    res = find_infeasible_subgraph(g, [], "trn", solver=FeasibilitySolver())
+    dt = time.perf_counter() - t
+    print(f"chain({n}): {res.stats.solves} solves, {1e3 * dt:.0f} ms")
+    assert not res.feasible and res.time_range == (3, 4)
+    assert templates(res.subgraph) == [("toy.left", 3), ("toy.move", 3), ("toy.right", 4)]
+    # 1 full check + two binary searches over at most n+1 steps (+1 heuristic check at most)
+    assert res.stats.solves <= 1 + 2 * math.ceil(math.log2(n + 1)) + 1
+    assert confirm_infeasible(res.subgraph)
+
+
+def test_binary_search_counts_checks_with_an_oracle():
+    """With an exact oracle (infeasible iff the slice holds both conflict factors) the search
+    finds (f, l) with O(log n) checks and never needs the solver."""
+    for n, at in [(64, 3), (64, 60), (33, 0), (100, 50)]:
+        vs, fs = chain(n, conflict_at=at)
+        g = GraphNLP(fs)
+        calls = []
+
+        def oracle(sub):
+            calls.append(sub)
+            names = {sub.factor(r).template for r in sub.factor_refs}
+            return not {"toy.left", "toy.right"} <= names or \
+                not any(sub.factor(r).template == "toy.move" and sub.factor(r).step == at
+                        for r in sub.factor_refs)
+
+        feasible, rng = binary_search_time(g, oracle)
+        assert not feasible and rng == (at, at + 1)
+        assert len(calls) <= 1 + 2 * math.ceil(math.log2(n + 1))
+
+
+def test_binary_search_feasible_graph():
+    vs, fs = chain(8, conflict_at=None)
+    s = FeasibilitySolver()
+    assert binary_search_time(GraphNLP(fs), lambda g: s.solve(g).feasible) == (True, None)
+
+
+def two_objects_and_robot():
+    """Objects b0 (stuck: must be in a box too small for it next to fixed obstacle b9) and b1
+    (fine); a robot q touches both through collision factors. Under `drop robot, collision`
+    only placement factors remain and the b0 conflict shows up alone."""
+    b0, b1, b9 = pose("b0", 0), pose("b1", 0), pose("b9", 0)
+    q = VarInstance("q", ("r",), 0, "SE2", 3, frozenset({"robot"}))
+    fs = [
+        in_box(b0, 0.1, 0), in_box(b1, 2.0, 0),
+        factor("toy.fixed", [b9], [Constraint(Slot(0), "==", C("concat", Num(0.0), Num(0.0), Num(0.0)))], 0),
+        no_overlap(b0, b9, 0.5, 0.5, 0, tags=("object",)),      # placement: object vs object
+        no_overlap(q, b0, 0.1, 0.5, 0, tags=("collision",)),
+        no_overlap(q, b1, 0.1, 0.5, 0, tags=("collision",)),
+        in_box(q, 3.0, 0, tags=("robot",)),
+    ]
+    return fs
+
+
+def test_relaxation_finds_the_small_conflict_first():
+    fs = two_objects_and_robot()
+    g = GraphNLP(fs)
+    rel = [Relaxation.of("no_robot_col", ["robot", "collision"]), Relaxation.of("no_col", ["collision"])]
+    res = find_infeasible_subgraph(g, rel, "trn")
+    assert res.relaxation == "no_robot_col"
+    assert templates(res.subgraph) == [("toy.fixed", 0), ("toy.in_box", 0), ("toy.no_overlap", 0)]
+    assert confirm_infeasible(res.subgraph)
+    # without relaxations the conflict comes from the full graph, still real
+    res2 = find_infeasible_subgraph(g, rel, "tn")
+    assert res2.relaxation == "full" and confirm_infeasible(res2.subgraph)
+    print("r:", res.stats.solves, "solves; no r:", res2.stats.solves, "solves")
+
+
+def test_convergence_heuristic_drops_unrelated_factors():
+    # b0 must satisfy x <= 0 and x >= 1 (violated at x*); the other factors (b0-b1 and b1-b2
+    # no_overlap, boxes) are satisfiable and satisfied at x*: the heuristic keeps only the two
+    # contradicting factors and their variable.
+    b0, b1, b2 = pose("b0", 0), pose("b1", 0), pose("b2", 0)
+    fs = [factor("toy.left", [b0], [Constraint(Index(Slot(0), Num(0)), "<=", Num(0.0))], 0),
+          factor("toy.right", [b0], [Constraint(Index(Slot(0), Num(0)), ">=", Num(1.0))], 0),
+          no_overlap(b0, b1, 0.5, 0.5, 0), no_overlap(b1, b2, 0.5, 0.5, 0),
+          in_box(b1, 3.0, 0), in_box(b2, 3.0, 0)]
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    r = s.solve(g)
+    assert not r.feasible
+    m = convergence_heuristic(g, r, lambda h: s.solve(h).feasible, TOL)
+    assert templates(m) == [("toy.left", 0), ("toy.right", 0)] and m.variables == [b0]
+    assert confirm_infeasible(m)
+    assert templates(find_infeasible_subgraph(g, [], "tn").subgraph) == templates(m)
+    assert find_infeasible_subgraph(g, [], "t").subgraph.n_factors == g.n_factors
+
+
+def test_convergence_heuristic_keeps_graph_when_violated_part_is_feasible():
+    # three discs in a tight box: at x* either only no_overlap or only in_box factors are
+    # violated (the elastic optimum puts the slack on one kind), and each kind alone is
+    # satisfiable, so M' is rejected and the whole graph stays the candidate
+    vs, fs = discs(3)
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    r = s.solve(g)
+    kinds = {g.factor(x).template for x in r.violated(TOL)}
+    assert len(kinds) == 1
+    assert s.solve(g.subgraph(factors=r.violated(TOL))).feasible
+    m = convergence_heuristic(g, r, lambda h: s.solve(h).feasible, TOL)
+    assert m.signature() == g.signature()
+
+
+def test_feasible_graph_returns_checked_solution():
+    vs, fs = chain(12, conflict_at=None)
+    fs = fs + discs(2)[1]
+    g = GraphNLP(fs)
+    res = find_infeasible_subgraph(g, [Relaxation.of("no_col", ["collision"])], "trn")
+    assert res.feasible and res.complete_values
+    worst, f = max_violation(fs, res.values)
+    assert worst <= TOL, f.label
+
+
+def test_injected_check_with_bools_counts_and_heuristic_solves():
+    vs, fs = chain(10, conflict_at=3)
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    seen = []
+
+    def check(sub):
+        seen.append(sub.signature())
+        return s.solve(sub).feasible
+
+    res = find_infeasible_subgraph(g, [], "trn", check=check, solver=s)
+    assert len(seen) == len(set(seen)) == res.stats.checks     # memo: no subgraph twice
+    assert res.stats.solves == 0 and res.stats.heuristic_solves == 1
+    assert templates(res.subgraph) == [("toy.left", 3), ("toy.move", 3), ("toy.right", 4)]
+
+
+def test_switches_validated():
+    with pytest.raises(ValueError):
+        find_infeasible_subgraph(GraphNLP(discs(1)[1]), [], "tx")
