@@ -34,6 +34,8 @@ class Conflict:
     relaxation: str = ""             # the relaxation in which it was found ("" = full graph)
     plan_index: int = 0              # which candidate plan produced it (1-based)
     at_step: int = 0                 # absolute step of p_0 in that plan
+    # not serialised: the infeasible subgraph's factor instances (tests re-solve them)
+    subgraph: tuple = field(default=(), repr=False, compare=False)
 
     def to_json(self) -> dict:
         return {

@@ -1,0 +1,101 @@
+"""The loop on a hand-made 1-D problem (real clingo planner, real casadi/ipopt, no front end)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from solve_checks import check_conflict_infeasible, check_solution
+from solve_toy import occupied_problem, unsolvable_problem
+from gnppdsl.errors import UserError
+from gnppdsl.solve.brute import brute_force
+from gnppdsl.solve.loop import SolveOptions, solve_compiled
+from gnppdsl.solve.result import NO_PLAN, SOLVED, TIME_LIMIT
+
+ALGORITHMS = [("gnpp", "t"), ("gnpp", "tr"), ("gnpp", "trn"), ("gnpp", "trng"), ("gnpp", ""), ("oneway", "")]
+
+
+@pytest.mark.parametrize("algorithm,switches", ALGORITHMS)
+def test_every_algorithm_solves_the_occupied_target(algorithm, switches):
+    compiled = occupied_problem()
+    res = solve_compiled(compiled, SolveOptions(algorithm=algorithm, switches=switches, time_limit=60, max_horizon=6))
+    assert res.status == SOLVED, res.message
+    assert res.stats.N0 == 2 and res.stats.N == 4
+    check_solution(compiled, res)
+    # b2 had to leave s2 before b1 entered the target
+    assert res.plan.index("place(b1, g, target)") > res.plan.index("pick(b2, g, s2)")
+    for c in res.conflicts:
+        if c.source != "plan":
+            check_conflict_infeasible(compiled, c)
+
+
+def test_relaxations_give_the_small_conflict():
+    res = solve_compiled(occupied_problem(), SolveOptions(switches="trn", time_limit=60, max_horizon=6))
+    assert [c.text for c in res.conflicts] == ["{parent(b1) = target, parent(b2) = s2}"]
+    assert res.conflicts[0].relaxation == "no_time"
+
+
+def test_without_time_search_the_conflict_spans_the_plan():
+    res = solve_compiled(occupied_problem(), SolveOptions(switches="", time_limit=60, max_horizon=6))
+    assert res.solved
+    assert len(res.conflicts[0].partial_states) == 3        # the whole first plan, s_0 .. s_2
+
+
+def test_no_geometric_solution_is_reported_honestly():
+    compiled = unsolvable_problem()
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=5))
+    assert res.status == NO_PLAN and not res.solved
+    assert "no plan up to horizon 5" in res.message
+    assert res.conflicts and res.conflicts[0].text == "{parent(b1) = slot}"
+    check_conflict_infeasible(compiled, res.conflicts[0])
+    assert brute_force(compiled, 5).shortest is None
+
+
+def test_time_limit_is_honoured():
+    res = solve_compiled(occupied_problem(), SolveOptions(time_limit=1e-4, max_horizon=6))
+    assert res.status == TIME_LIMIT and "time limit" in res.message
+
+
+@pytest.mark.parametrize("make", [occupied_problem, unsolvable_problem])
+def test_gnpp_is_complete_against_brute_force(make):
+    compiled = make()
+    bf = brute_force(compiled, 5)
+    assert bf.exhausted
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=5))
+    assert res.stats.N == bf.shortest
+    assert res.solved == (bf.shortest is not None)
+    assert bf.plans_checked > res.stats.plans     # brute force had to look at more plans
+
+
+def test_database_persists_what_was_learned(tmp_path: Path):
+    db = tmp_path / "toy.sqlite"
+    first = solve_compiled(occupied_problem(), SolveOptions(switches="trn", database=str(db), time_limit=60,
+                                                            max_horizon=6))
+    assert first.switches == "trng" and first.solved
+    second = solve_compiled(occupied_problem(), SolveOptions(switches="trn", database=str(db), time_limit=60,
+                                                             max_horizon=6))
+    assert second.solved and second.stats.N == first.stats.N
+    assert second.stats.nlp_solves < first.stats.nlp_solves
+    assert second.conflicts[0].source == "database"
+    assert second.conflicts[0].text == first.conflicts[0].text
+    check_solution(occupied_problem(), second)
+
+
+def test_oneway_with_a_database_is_a_user_error():
+    with pytest.raises(UserError, match="needs the gnpp algorithm"):
+        SolveOptions(algorithm="oneway", database="x.sqlite").validated()
+    with pytest.raises(UserError):
+        SolveOptions(switches="trx").validated()
+
+
+def test_json_result(tmp_path: Path):
+    res = solve_compiled(occupied_problem(), SolveOptions(time_limit=60, max_horizon=6))
+    out = tmp_path / "r.json"
+    res.write_json(out)
+    data = json.loads(out.read_text())
+    assert data["status"] == "solved" and data["stats"]["N"] == 4 and data["stats"]["N0"] == 2
+    assert len(data["steps"]) == 5 and data["steps"][0]["action"] is None
+    assert data["steps"][4]["values"]["pose(b1)"][0] == pytest.approx(1.0, abs=0.02)
+    assert data["conflicts"][0]["text"] == "{parent(b1) = target, parent(b2) = s2}"
+    assert data["plan"] == res.plan
