@@ -1,0 +1,313 @@
+"""IR -> grounded SAS+ task (`SASTask`): the logic half <V, A, s0, g> of a PNTC problem.
+
+What the compiler decides here (and why):
+- One SAS+ variable per ground state variable, `parent(b1)`, whose values are the objects of the
+  declared types (declaration order) plus `none` if allowed; booleans get ("false", "true").
+- One derived variable (default false) per ground derived atom, with one axiom per disjunct of
+  its body in disjunctive normal form (`exists` expands over the objects). SAS+ axioms only
+  derive "true", so a negated complex sub-formula (`not exists o . parent(o) = x`) becomes a
+  positive auxiliary derived variable that is tested for its default value 0. A `!=` test of a
+  multi-valued variable in a precondition, goal or effect condition becomes an auxiliary derived
+  variable "v != x" (one axiom per other value), since SAS+ conditions are conjunctions of facts.
+  Axiom layers come from the strongly connected components of the ground dependency graph
+  (negation must cross layers; negation inside recursion is reported as an error).
+- `initial` in any rule adds a marker variable `initial` (true only in s_0: every operator
+  sets it false), so conflicts that mention it can only ever match at step 0.
+- Ground operators that can never apply (a value outside a variable's domain, contradictory
+  preconditions, a false static comparison, inconsistent effects) are dropped.
+"""
+from __future__ import annotations
+
+from itertools import product
+
+import networkx as nx
+
+from gnppdsl.compile.ground import MARKER, Binding, bindings, compare_holds, located, term_name, var_name
+from gnppdsl.compile.sas import Axiom, Effect, Fact, Operator, PartialState, SASTask, SASVariable
+from gnppdsl.errors import UserError
+from gnppdsl.ir import model as m
+
+__all__ = ["build_task", "uses_initial"]
+
+BOOL = (m.FALSE, m.TRUE)
+_DNF_LIMIT = 64          # an And whose expansion exceeds this gets auxiliary variables
+
+Conj = tuple[Fact, ...]
+DNF = list[Conj]          # [] = false, [()] = true
+
+
+def uses_initial(domain: m.Domain) -> bool:
+    return any(r.kind == "initial" for r in domain.rules)
+
+
+class _Builder:
+    def __init__(self, problem: m.Problem) -> None:
+        self.problem = problem
+        self.domain = problem.domain
+        self.names: list[str] = []
+        self.values: list[tuple[str, ...]] = []
+        self.derived: list[bool] = []
+        self.index: dict[str, int] = {}
+        self.axioms: list[Axiom] = []
+        self.aux_cache: dict[tuple, int] = {}
+
+    # ---- variables ---------------------------------------------------------------------
+    def add_var(self, name: str, values: tuple[str, ...], derived: bool, span=None) -> int:
+        if name in self.index:
+            raise UserError(located(span, f"variable '{name}' declared twice"))
+        self.index[name] = len(self.names)
+        self.names.append(name)
+        self.values.append(values)
+        self.derived.append(derived)
+        return self.index[name]
+
+    def aux(self, dnf: DNF, name: str) -> int:
+        """A derived variable true iff one of the conjunctions holds (shared when equal)."""
+        key = tuple(sorted(dnf))
+        if key in self.aux_cache:
+            return self.aux_cache[key]
+        base, k = name, 1
+        while name in self.index:
+            k += 1
+            name = f"{base}#{k}"
+        v = self.add_var(name, BOOL, True)
+        self.aux_cache[key] = v
+        for conj in key:
+            self.axioms.append(Axiom(conj, v, 1))
+        return v
+
+    def fact_str(self, fact: Fact) -> str:
+        v, val = fact
+        return f"{self.names[v]} = {self.values[v][val]}"
+
+    # ---- literals and formulas ---------------------------------------------------------
+    def state_lit(self, lit: m.StateLit, b: Binding) -> DNF:
+        name = var_name(lit.var, [term_name(a, b) for a in lit.args])
+        v = self.index.get(name)
+        value = term_name(lit.value, b)
+        if v is None or self.derived[v] or value not in self.values[v]:
+            return [()] if lit.negated else []
+        val = self.values[v].index(value)
+        if not lit.negated:
+            return [((v, val),)]
+        return [((v, w),) for w in range(len(self.values[v])) if w != val]
+
+    def derived_lit(self, lit: m.DerivedLit, b: Binding) -> DNF:
+        name = var_name(lit.pred, [term_name(a, b) for a in lit.args])
+        v = self.index.get(name)
+        if v is None or not self.derived[v]:
+            return [()] if lit.negated else []
+        return [((v, 0 if lit.negated else 1),)]
+
+    def dnf(self, f, b: Binding, owner: str) -> DNF:
+        if isinstance(f, m.StateLit):
+            return self.state_lit(f, b)
+        if isinstance(f, m.DerivedLit):
+            return self.derived_lit(f, b)
+        if isinstance(f, m.Compare):
+            return [()] if compare_holds(self.problem, f, b) else []
+        if isinstance(f, m.Or):
+            out: DNF = []
+            for item in f.items:
+                out.extend(self.dnf(item, b, owner))
+            return _simplify(out)
+        if isinstance(f, m.Exists):
+            out = []
+            for extra in bindings(self.problem, f.params):
+                out.extend(self.dnf(f.body, {**b, **extra}, owner))
+            return _simplify(out)
+        if isinstance(f, m.And):
+            parts = [self.dnf(item, b, owner) for item in f.items]
+            size = 1
+            for p in parts:
+                size *= max(1, len(p))
+            if size > _DNF_LIMIT:
+                parts = [p if len(p) <= 1 else [((self.aux(p, f"{owner}~or"), 1),)] for p in parts]
+            out = []
+            for combo in product(*parts):
+                merged = _merge(combo)
+                if merged is not None:
+                    out.append(merged)
+            return _simplify(out)
+        if isinstance(f, m.Not):
+            inner = self.dnf(f.item, b, owner)
+            if not inner:
+                return [()]
+            if () in inner:
+                return []
+            if len(inner) == 1 and len(inner[0]) == 1:
+                (v, val), = inner[0]
+                if self.values[v] == BOOL:   # boolean state or derived variable: flip it
+                    return [((v, 1 - val),)]
+            return [((self.aux(inner, f"{owner}~not"), 0),)]
+        raise UserError(located(getattr(f, "span", None), f"unsupported formula {f!r}"))
+
+    def conjunction(self, lits, b: Binding, owner: str) -> Conj | None:
+        """Facts of a conjunction of literals; None if it can never hold. A literal whose
+        DNF has several disjuncts (`v != x`) becomes one auxiliary derived fact."""
+        facts: list[Fact] = []
+        for lit in lits:
+            d = self.dnf(lit, b, owner)
+            if not d:
+                return None
+            if len(d) == 1:
+                facts.extend(d[0])
+            else:
+                name = f"{owner}~cond"
+                if isinstance(lit, m.StateLit) and lit.negated:
+                    name = f"{var_name(lit.var, [term_name(a, b) for a in lit.args])} != {term_name(lit.value, b)}"
+                facts.append((self.aux(d, name), 1))
+        return _merge([facts])
+
+    # ---- the task ----------------------------------------------------------------------
+    def build(self) -> SASTask:
+        p, d = self.problem, self.domain
+        for sv in d.state_vars.values():
+            values = p.values_of(sv)
+            for args in p.groundings(sv.params):
+                self.add_var(var_name(sv.name, args), values, False, sv.span)
+        marker = None
+        if uses_initial(d):
+            marker = self.add_var(MARKER, BOOL, False)
+        heads = []
+        for dp in d.derived.values():
+            for binding in bindings(p, dp.params):
+                args = [binding[q.name] for q in dp.params]
+                heads.append((self.add_var(var_name(dp.name, args), BOOL, True, dp.span), dp, binding))
+        for v, dp, binding in heads:
+            for conj in self.dnf(dp.body, binding, self.names[v]):
+                self.axioms.append(Axiom(conj, v, 1))
+
+        initial = self.initial_state(marker)
+        goal = self.goal()
+        operators = self.operators(marker)
+        layers = self.layers()
+        variables = [SASVariable(n, vals, layers.get(i, 0) if der else -1)
+                     for i, (n, vals, der) in enumerate(zip(self.names, self.values, self.derived))]
+        init = tuple(0 if der else initial[i] for i, der in enumerate(self.derived))
+        axioms = sorted(set(self.axioms), key=lambda a: (variables[a.var].axiom_layer, a.var, a.conditions))
+        return SASTask(variables, init, goal, operators, axioms, name=p.name)
+
+    def initial_state(self, marker: int | None) -> dict[int, int]:
+        p = self.problem
+        init: dict[int, int] = {}
+        for a in p.init:
+            name = var_name(a.var, [term_name(x, {}) for x in a.args])
+            v = self.index.get(name)
+            if v is None or self.derived[v]:
+                raise UserError(located(a.span, f"'{name}' is not a state variable of this problem"))
+            value = term_name(a.value, {})
+            if value not in self.values[v]:
+                raise UserError(located(a.span, f"'{value}' is not a possible value of {name} "
+                                        f"(possible: {', '.join(self.values[v])})"))
+            if v in init and init[v] != self.values[v].index(value):
+                raise UserError(located(a.span, f"two initial values for {name}"))
+            init[v] = self.values[v].index(value)
+        if marker is not None:
+            init[marker] = 1
+        for v, name in enumerate(self.names):
+            if self.derived[v] or v in init:
+                continue
+            if self.values[v] == BOOL:
+                init[v] = 0
+            elif m.NONE in self.values[v]:
+                init[v] = self.values[v].index(m.NONE)
+            else:
+                raise UserError(located(p.span, f"no initial value for {name}"))
+        return init
+
+    def goal(self) -> PartialState:
+        conj = self.conjunction(self.problem.goal, {}, "goal")
+        if conj is None:
+            raise UserError(located(self.problem.span,
+                                    "the goal can never hold (a value outside a variable's domain "
+                                    "or contradictory goal facts)"))
+        return PartialState.of(conj)
+
+    def operators(self, marker: int | None) -> list[Operator]:
+        ops: list[Operator] = []
+        for act in self.domain.actions.values():
+            for b in bindings(self.problem, act.params):
+                op = self.operator(act, b, marker)
+                if op is not None:
+                    ops.append(op)
+        return ops
+
+    def operator(self, act: m.Action, b: Binding, marker: int | None) -> Operator | None:
+        name = f"{act.name}({', '.join(b[q.name] for q in act.params)})"
+        pre = self.conjunction(act.pre, b, name)
+        if pre is None:
+            return None
+        effects: list[Effect] = []
+        unconditional: dict[int, int] = {}
+        for eff in act.effects:
+            a = eff.assign
+            target = var_name(a.var, [term_name(x, b) for x in a.args])
+            v = self.index.get(target)
+            value = term_name(a.value, b)
+            if v is None or self.derived[v] or value not in self.values[v]:
+                return None                     # statically inapplicable grounding
+            val = self.values[v].index(value)
+            conds = self.conjunction(eff.conditions, b, name) if eff.conditions else ()
+            if conds is None:
+                continue                        # the condition can never hold
+            if not conds:
+                if unconditional.get(v, val) != val:
+                    return None                 # contradictory effects
+                unconditional[v] = val
+            effects.append(Effect(v, val, tuple(conds)))
+        if marker is not None and marker not in unconditional:
+            effects.append(Effect(marker, 0))
+        return Operator(name, pre, tuple(dict.fromkeys(effects)), act.cost)
+
+    def layers(self) -> dict[int, int]:
+        """Axiom layers by stratification of the ground dependency graph."""
+        g = nx.DiGraph()
+        g.add_nodes_from(v for v, der in enumerate(self.derived) if der)
+        for ax in self.axioms:
+            for v, val in ax.conditions:
+                if self.derived[v]:
+                    w = 1 if val == 0 else 0
+                    if g.has_edge(v, ax.var):
+                        w = max(w, g[v][ax.var]["w"])
+                    g.add_edge(v, ax.var, w=w)
+        cond = nx.condensation(g)
+        layer_of_scc: dict[int, int] = {}
+        for c in nx.topological_sort(cond):
+            members = cond.nodes[c]["members"]
+            for u in members:
+                for v in g.successors(u):
+                    if v in members and g[u][v]["w"]:
+                        raise UserError(
+                            f"derived predicates are not stratified: {self.names[v]} depends "
+                            f"negatively on {self.names[u]}, which depends on it")
+            lay = 0
+            for pred in cond.predecessors(c):
+                for u in cond.nodes[pred]["members"]:
+                    for v in g.successors(u):
+                        if v in members:
+                            lay = max(lay, layer_of_scc[pred] + g[u][v]["w"])
+            layer_of_scc[c] = lay
+        return {v: layer_of_scc[cond.graph["mapping"][v]] for v in g.nodes}
+
+
+def _merge(conjs) -> Conj | None:
+    """Union of conjunctions; None if two facts give one variable different values."""
+    out: dict[int, int] = {}
+    for conj in conjs:
+        for v, val in conj:
+            if out.get(v, val) != val:
+                return None
+            out[v] = val
+    return tuple(sorted(out.items()))
+
+
+def _simplify(dnf: DNF) -> DNF:
+    if () in dnf:
+        return [()]
+    return list(dict.fromkeys(dnf))
+
+
+def build_task(problem: m.Problem) -> SASTask:
+    """Ground the problem's logic into a SAS+ task (see the module docstring)."""
+    return _Builder(problem).build()
