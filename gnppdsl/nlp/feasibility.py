@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from gnppdsl.compile.factors import VarInstance
+from gnppdsl.errors import UserError
 from gnppdsl.nlp.casadi_expr import BodyCompiler, CompiledBody
 from gnppdsl.nlp.geometry_protocol import Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
@@ -42,13 +43,27 @@ class SolverOptions:
     restarts: int = 2              # extra random restarts after an infeasible verdict: a false
                                    # "infeasible" would prune feasible plans (Theorem 7.1)
     noise: float = 0.1             # std of the default start perturbation (x10 on restarts)
-    ipopt: dict = field(default_factory=dict)   # extra ipopt options ("ipopt.xyz": value)
+    ipopt: dict = field(default_factory=dict)   # extra nlpsol options ("ipopt.xyz": value)
+    plugin: str = "ipopt"          # casadi nlpsol plugin: "ipopt" or "sqpmethod" (qrqp)
+    time_limit: float | None = None   # wall-clock seconds per ipopt run
 
     def nlpsol_options(self) -> dict:
+        if self.plugin == "sqpmethod":
+            opts = {"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
+                                                       "error_on_fail": False},
+                    "print_header": False, "print_iteration": False, "print_status": False,
+                    "print_time": False, "error_on_fail": False, "max_iter": self.max_iter,
+                    "tol_pr": min(1e-8, 0.01 * self.tolerance), "tol_du": 1e-9}
+            opts.update(self.ipopt)
+            return opts
+        if self.plugin != "ipopt":
+            raise UserError(f"unknown nlp solver {self.plugin!r} (use ipopt or sqpmethod)")
         opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                 "ipopt.max_iter": self.max_iter, "ipopt.tol": 1e-9,
                 "ipopt.constr_viol_tol": min(1e-8, 0.01 * self.tolerance),
                 "ipopt.mu_strategy": "adaptive", "error_on_fail": False}
+        if self.time_limit is not None:
+            opts["ipopt.max_wall_time"] = float(self.time_limit)
         opts.update(self.ipopt)
         return opts
 
@@ -107,6 +122,27 @@ def _quat_slices(v: VarInstance) -> list[slice]:
     n = max(v.waypoints, 1)
     d = v.dim // n
     return [slice(k * d + 3, k * d + 7) for k in range(n)]
+
+
+def interpolated_trajectory(v: VarInstance, known: Mapping[VarInstance, np.ndarray]
+                            ) -> np.ndarray | None:
+    """Start for trajectory x_i (motion from step i to i+1): the straight line between the
+    known values of the mode-switch variables it connects (same objects and point space, steps
+    i and i+1), as the paper warm-starts trajectories after solving without them (App. C)."""
+    ends = {}
+    for u, val in known.items():
+        if (u.args == v.args and not u.waypoints and u.space == v.space
+                and u.dim == v.point_dim and u.step in (v.step, v.step + 1)):
+            ends.setdefault(u.kind, {})[u.step] = np.asarray(val, float).reshape(-1)
+    full = [k for k, d in ends.items() if len(d) == 2]
+    if len(full) != 1:
+        return None
+    a, b = ends[full[0]][v.step], ends[full[0]][v.step + 1]
+    t = np.linspace(0.0, 1.0, v.waypoints)[:, None]
+    pts = (1 - t) * a + t * b
+    for sl in _quat_slices(VarInstance(v.kind, v.args, v.step, v.space, v.point_dim)):
+        pts[:, sl] /= np.linalg.norm(pts[:, sl], axis=1, keepdims=True)
+    return pts.reshape(-1)
 
 
 class FeasibilitySolver:
@@ -171,7 +207,7 @@ class FeasibilitySolver:
         reg = ca.sum1(ca.sqrt(1 + (x - x0) ** 2) - 1) if n else 0
         obj = ca.sum1(ca.vertcat(s_in, s_p, s_m)) + self.options.regularisation * reg
         z = ca.vertcat(x, s_in, s_p, s_m)
-        solver = ca.nlpsol(f"elastic_{len(self._nlps)}", "ipopt",
+        solver = ca.nlpsol(f"elastic_{len(self._nlps)}", self.options.plugin,
                            {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P)},
                            self.options.nlpsol_options())
         h_fun = ca.Function("h", [x, P], [h_all])
@@ -209,13 +245,13 @@ class FeasibilitySolver:
                seed: int, attempt: int) -> np.ndarray:
         x0 = np.zeros(a.n_x)
         guess = initial_guess if initial_guess is not None else graph.initial_guess
+        known: dict[VarInstance, np.ndarray] = {}
+        if attempt == 0:
+            known = {**(guess or {}), **(warm_start or {})}
         for v, off in zip(a.variables, a.offsets):
-            val = None
-            if attempt == 0:
-                if warm_start is not None and v in warm_start:
-                    val = warm_start[v]
-                elif guess and v in guess:
-                    val = guess[v]
+            val = known.get(v)
+            if val is None and v.waypoints and known:
+                val = interpolated_trajectory(v, known)
             if val is None:
                 val = self._default_start(v, seed, attempt)
             x0[off:off + v.dim] = np.asarray(val, float).reshape(-1)

@@ -163,3 +163,30 @@ def test_mx_callback_geometry_in_assembly(n, feasible):
     assert s.compiler.compile(fs[-1])[0].symbolic == "MX"
     assert r.feasible is feasible
     assert (max_violation(fs, r.values, geo)[0] <= TOL) is feasible
+
+
+def test_sqpmethod_plugin_gives_same_verdicts():
+    s = FeasibilitySolver(options=SolverOptions(plugin="sqpmethod"))
+    for n, feasible in [(2, True), (3, False)]:
+        vs, fs = discs(n)
+        r = s.solve(GraphNLP(fs))
+        assert r.feasible is feasible
+        assert (max_violation(fs, r.values)[0] <= TOL) is feasible
+
+
+def test_trajectory_start_interpolates_between_mode_switches():
+    from gnppdsl.nlp.feasibility import interpolated_trajectory
+    q0 = VarInstance("q", ("r",), 2, "joints", 2)
+    q1 = VarInstance("q", ("r",), 3, "joints", 2)
+    path = VarInstance("path", ("r",), 2, "joints", 8, waypoints=4)
+    got = interpolated_trajectory(path, {q0: np.array([0.0, 3.0]), q1: np.array([3.0, 0.0])})
+    assert got == pytest.approx([0, 3, 1, 2, 2, 1, 3, 0])
+    assert interpolated_trajectory(path, {q0: np.array([0.0, 3.0])}) is None
+    # used as the start: a smoothness factor alone is already satisfied there, and the
+    # solver keeps the trajectory (regulariser pulls towards the start)
+    smooth = factor("t.smooth", [path], [Constraint(C("norm", C("sub", C("waypoint", Slot(0), Num(k + 1)),
+                                                                  C("waypoint", Slot(0), Num(k)))),
+                                                    "<=", Num(1.5)) for k in range(3)], 2)
+    r = FeasibilitySolver().solve(GraphNLP([smooth]), warm_start={q0: np.array([0.0, 3.0]),
+                                                                  q1: np.array([3.0, 0.0])})
+    assert r.feasible and r.values[path] == pytest.approx(got, abs=1e-3)
