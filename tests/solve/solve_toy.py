@@ -72,10 +72,38 @@ class ToyFactory:
                                                   (self.var(a, i), self.var(b, i)),
                                                   (Constraint(_sq(_sub(Slot(0), Slot(1))), ">=",
                                                               Num((2 * R) ** 2)),)))
+        if self.waypoints:
+            out += self.traj_factors(states)
         return out
 
     def variables(self, states) -> list[VarInstance]:
-        return [self.var(b, i) for i in range(len(states)) for b in self.blocks]
+        out = [self.var(b, i) for i in range(len(states)) for b in self.blocks]
+        if self.waypoints:
+            out += [self.path(b, i) for i in range(len(states) - 1) for b in self.blocks]
+        return out
+
+    # ---- optional trajectories: path(b)@i moves pose(b)@i to pose(b)@i+1 in bounded steps ----
+    waypoints = 0
+    max_step = 0.3
+
+    def path(self, b: str, i: int) -> VarInstance:
+        return VarInstance("path", (b,), i, "R", self.waypoints, frozenset({"traj"}), waypoints=self.waypoints)
+
+    def traj_factors(self, states) -> list[FactorInstance]:
+        out = []
+        W = self.waypoints
+        for i in range(len(states) - 1):
+            for b in self.blocks:
+                gen = (PartialState(), PartialState())
+                wp = lambda k: Call("waypoint", (Slot(0), Num(k)))
+                out.append(FactorInstance("toy.ends", "ends", (("o", b),), frozenset({"traj"}), i, 2, gen,
+                                          (self.path(b, i), self.var(b, i), self.var(b, i + 1)),
+                                          (Constraint(wp(0), "==", Slot(1)), Constraint(wp(W - 1), "==", Slot(2)))))
+                out.append(FactorInstance("toy.smooth", "smooth", (("o", b),), frozenset({"traj"}), i, 1,
+                                          (PartialState(),), (self.path(b, i),),
+                                          tuple(Constraint(_sq(_sub(wp(k + 1), wp(k))), "<=", Num(self.max_step ** 2))
+                                                for k in range(W - 1))))
+        return out
 
     def initial_guess(self, v: VarInstance):
         return None
@@ -103,14 +131,16 @@ def toy_task(blocks, spots, regions, init: dict[str, str], goal: dict[str, str])
     return SASTask(variables, initial, g, ops, name="toy")
 
 
-def occupied_problem(name: str = "toy_occupied", target_half: float = 0.06) -> Compiled:
+def occupied_problem(name: str = "toy_occupied", target_half: float = 0.06, waypoints: int = 0) -> Compiled:
     blocks = ["b1", "b2"]
     spots = {"s1": 0.0, "s2": 1.0}
     regions = {"target": (1.0, target_half), "side": (2.0, 0.3)}
     task = toy_task(blocks, spots, regions, {"b1": "s1", "b2": "s2"}, {"b1": "target"})
     factory = ToyFactory(task, spots, regions, blocks)
+    factory.waypoints = waypoints
     problem = SimpleNamespace(name=name, domain=SimpleNamespace(name="toy"), settings=None)
-    relax = (Relaxation.of("no_col", {"collision"}), Relaxation.of("no_time", {"time"}))
+    relax = (Relaxation.of("no_col_traj", {"collision", "traj"}), Relaxation.of("no_time_traj", {"time", "traj"}),
+             Relaxation.of("no_traj", {"traj"}))
     return Compiled(problem, task, factory, None, relax, fingerprint="toy-v1")
 
 

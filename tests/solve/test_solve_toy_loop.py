@@ -33,7 +33,7 @@ def test_every_algorithm_solves_the_occupied_target(algorithm, switches):
 def test_relaxations_give_the_small_conflict():
     res = solve_compiled(occupied_problem(), SolveOptions(switches="trn", time_limit=60, max_horizon=6))
     assert [c.text for c in res.conflicts] == ["{parent(b1) = target, parent(b2) = s2}"]
-    assert res.conflicts[0].relaxation == "no_time"
+    assert res.conflicts[0].relaxation == "no_time_traj"
 
 
 def test_without_time_search_the_conflict_spans_the_plan():
@@ -99,3 +99,43 @@ def test_json_result(tmp_path: Path):
     assert data["steps"][4]["values"]["pose(b1)"][0] == pytest.approx(1.0, abs=0.02)
     assert data["conflicts"][0]["text"] == "{parent(b1) = target, parent(b2) = s2}"
     assert data["plan"] == res.plan
+
+
+@pytest.mark.parametrize("algorithm,switches", [("gnpp", "trn"), ("oneway", "")])
+def test_trajectories_after_mode_switches(algorithm, switches):
+    compiled = occupied_problem(waypoints=8)
+    res = solve_compiled(compiled, SolveOptions(algorithm=algorithm, switches=switches, time_limit=60,
+                                                max_horizon=6))
+    assert res.solved and res.stats.N == 4
+    check_solution(compiled, res)
+    # every motion phase has a trajectory from pose@i to pose@i+1 with bounded steps
+    for i, st in enumerate(res.steps[:-1]):
+        pts = st.trajectories["path(b2)"]
+        assert len(pts) == 8
+        assert pts[0][0] == pytest.approx(st.values["pose(b2)"][0], abs=1e-6)
+        assert pts[-1][0] == pytest.approx(res.steps[i + 1].values["pose(b2)"][0], abs=1e-6)
+
+
+def test_interpolation_and_keyframes():
+    import numpy as np
+
+    from gnppdsl.compile.factors import VarInstance
+    from gnppdsl.solve.loop import bound_violation, interpolate_trajectories, keyframe_of
+
+    q0 = VarInstance("q", ("r",), 0, "R", 2)
+    q1 = VarInstance("q", ("r",), 1, "R", 2)
+    other = VarInstance("pose", ("r",), 0, "R", 3)
+    tr = VarInstance("path", ("r",), 0, "R", 8, frozenset({"traj"}), waypoints=4)
+    assert keyframe_of(tr, [q0, other]) == "q(r)"
+    warm = interpolate_trajectories([tr], {q0: np.array([0.0, 1.0]), q1: np.array([3.0, -2.0]), other: np.zeros(3)})
+    pts = warm[tr].reshape(4, 2)
+    assert np.allclose(pts, [[0, 1], [1, 0], [2, -1], [3, -2]])
+    se3a = VarInstance("x", ("r",), 0, "SE3", 7)
+    se3b = VarInstance("x", ("r",), 1, "SE3", 7)
+    trs = VarInstance("xs", ("r",), 0, "SE3", 21, waypoints=3)
+    w = interpolate_trajectories([trs], {se3a: np.array([0, 0, 0, 0, 0, 0, 1.0]),
+                                         se3b: np.array([1, 0, 0, 0, 0, 1.0, 0])})[trs].reshape(3, 7)
+    assert np.allclose(np.linalg.norm(w[:, 3:], axis=1), 1.0) and np.allclose(w[1, :3], [0.5, 0, 0])
+    b = VarInstance("q", ("r",), 0, "R", 2, lower=(-1.0, -1.0), upper=(1.0, 1.0))
+    assert bound_violation([b], {b: np.array([0.5, 1.25])}) == pytest.approx(0.25)
+    assert bound_violation([b], {b: np.array([0.5, -0.5])}) == 0.0
