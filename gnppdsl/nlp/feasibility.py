@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import time
 import zlib
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -46,6 +47,8 @@ class SolverOptions:
     ipopt: dict = field(default_factory=dict)   # extra nlpsol options ("ipopt.xyz": value)
     plugin: str = "ipopt"          # casadi nlpsol plugin: "ipopt" or "sqpmethod" (qrqp)
     time_limit: float | None = None   # wall-clock seconds per ipopt run
+    cache_size: int = 512          # assembled NLPs kept (LRU) per FeasibilitySolver
+    polish: bool = True            # re-solve infeasible verdicts with rho * 1e-4 from x*
 
     def nlpsol_options(self) -> dict:
         if self.plugin == "sqpmethod":
@@ -154,7 +157,8 @@ class FeasibilitySolver:
                  compiler: BodyCompiler | None = None):
         self.options = options or SolverOptions()
         self.compiler = compiler or BodyCompiler(geometry)
-        self._nlps: dict[frozenset, _Assembled] = {}
+        self._nlps: OrderedDict[frozenset, _Assembled] = OrderedDict()   # LRU
+        self._built = 0
         self.solves = 0                 # ipopt runs
         self.solve_time = 0.0
 
@@ -163,6 +167,7 @@ class FeasibilitySolver:
         key = graph.signature()
         a = self._nlps.get(key)
         if a is not None:
+            self._nlps.move_to_end(key)
             return a
         variables = graph.variables
         offsets, n = [], 0
@@ -197,6 +202,7 @@ class FeasibilitySolver:
         s_p = S.sym("s_p", eq.size)
         s_m = S.sym("s_m", eq.size)
         x0 = S.sym("x0", n)
+        rho = S.sym("rho")
         quats = [ca.sumsqr(x[offsets[index[v]] + sl.start:offsets[index[v]] + sl.stop]) - 1
                  for v in variables for sl in _quat_slices(v)]
         g = ca.vertcat(h_all[ineq.tolist()] - s_in if ineq.size else S(0, 1),
@@ -205,10 +211,11 @@ class FeasibilitySolver:
         # pseudo-Huber pull towards the start: curvature rho near x0, gradient bounded by rho,
         # so the L1 penalty stays exact however far the solution is from the start.
         reg = ca.sum1(ca.sqrt(1 + (x - x0) ** 2) - 1) if n else 0
-        obj = ca.sum1(ca.vertcat(s_in, s_p, s_m)) + self.options.regularisation * reg
+        obj = ca.sum1(ca.vertcat(s_in, s_p, s_m)) + rho * reg
         z = ca.vertcat(x, s_in, s_p, s_m)
-        solver = ca.nlpsol(f"elastic_{len(self._nlps)}", self.options.plugin,
-                           {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P)},
+        self._built += 1
+        solver = ca.nlpsol(f"elastic_{self._built}", self.options.plugin,
+                           {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P, rho)},
                            self.options.nlpsol_options())
         h_fun = ca.Function("h", [x, P], [h_all])
         lbx = np.concatenate([_bounds(v, v.lower, -np.inf) for v in variables]) if variables \
@@ -223,6 +230,8 @@ class FeasibilitySolver:
         a = _Assembled(solver, h_fun, variables, offsets, n, kinds_arr, factor_rows, params,
                        ineq.size, eq.size, lbz, ubz, lbg, ubg)
         self._nlps[key] = a
+        while len(self._nlps) > self.options.cache_size:
+            self._nlps.popitem(last=False)
         return a
 
     # -- starts -----------------------------------------------------------------------------
@@ -258,12 +267,13 @@ class FeasibilitySolver:
         return np.clip(x0, a.lbx[:a.n_x], a.ubx[:a.n_x])
 
     # -- solving ----------------------------------------------------------------------------
-    def _run(self, a: _Assembled, x0: np.ndarray) -> tuple[np.ndarray, float, int, str]:
+    def _run(self, a: _Assembled, x0: np.ndarray, rho: float
+             ) -> tuple[np.ndarray, float, int, str]:
         h0 = np.asarray(a.h_fun(x0, a.params)).reshape(-1)
         hi, he = h0[~a.kinds], h0[a.kinds]
         z0 = np.concatenate([x0, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
         z0 = np.nan_to_num(z0, nan=1.0, posinf=1e3, neginf=-1e3)
-        sol = a.solver(x0=z0, p=np.concatenate([x0, a.params]), lbx=a.lbx, ubx=a.ubx,
+        sol = a.solver(x0=z0, p=np.concatenate([x0, a.params, [rho]]), lbx=a.lbx, ubx=a.ubx,
                        lbg=a.lbg, ubg=a.ubg)
         st = a.solver.stats()
         self.solves += 1
@@ -299,10 +309,17 @@ class FeasibilitySolver:
         iters, starts = 0, 0
         for k in range(1 + max(0, self.options.restarts)):
             x0 = self._start(a, graph, warm_start, initial_guess, seed, k)
-            x, slack, it, status = self._run(a, x0)
+            x, slack, it, status = self._run(a, x0, self.options.regularisation)
             iters += it
             starts += 1
             values, per, worst = self._verdict(a, x)
+            if worst > tol and self.options.polish:
+                # The pull towards the start can outweigh the L1 penalty on badly scaled rows
+                # (gradient below rho): re-solve from x* with a much weaker pull before
+                # believing an infeasible verdict.
+                x, slack, it, status = self._run(a, x, self.options.regularisation * 1e-4)
+                iters += it
+                values, per, worst = self._verdict(a, x)
             if best is None or worst < best[2]:
                 best = (values, per, worst, slack, status)
             if worst <= tol:

@@ -190,3 +190,24 @@ def test_trajectory_start_interpolates_between_mode_switches():
     r = FeasibilitySolver().solve(GraphNLP([smooth]), warm_start={q0: np.array([0.0, 3.0]),
                                                                   q1: np.array([3.0, 0.0])})
     assert r.feasible and r.values[path] == pytest.approx(got, abs=1e-3)
+
+
+def test_badly_scaled_row_far_from_start_is_not_a_false_conflict():
+    """1e-3 * x == 1e-2 needs x = 10: the default pull towards the start (gradient up to rho =
+    1e-2) outweighs this row's L1 penalty; the polish re-solve must still find it feasible."""
+    v = pose("b", 0)
+    f = factor("t.scaled", [v], [Constraint(C("mul", Num(1e-3), Index(Slot(0), Num(0))), "==",
+                                            Num(1e-2))], 0)
+    r = FeasibilitySolver(options=SolverOptions(restarts=0)).solve(GraphNLP([f]))
+    assert r.feasible and r.values[v][0] == pytest.approx(10.0, abs=1e-3)
+    r = FeasibilitySolver(options=SolverOptions(restarts=0, polish=False)).solve(GraphNLP([f]))
+    assert not r.feasible        # documents why the polish step exists
+
+
+def test_assembled_nlp_cache_is_bounded():
+    s = FeasibilitySolver(options=SolverOptions(cache_size=2))
+    vs, fs = chain(4, conflict_at=None)
+    g = GraphNLP(fs)
+    for k in range(4):
+        assert s.solve(g.time_slice(k, k + 1)).feasible
+    assert len(s._nlps) == 2
