@@ -115,9 +115,25 @@ class WitnessCallback(ca.Callback):
         return True
 
     def get_jacobian(self, name, inames, onames, opts):
-        x = ca.MX.sym("x", 24)
-        o = ca.MX.sym("o", 9)
-        return ca.Function(name, [x, o], [ca.MX(ca.Sparsity(9, 24))], inames, onames, opts)
+        x = ca.SX.sym("x", 24)
+        o = ca.SX.sym("o", 9)
+        return ca.Function(name, [x, o], [ca.SX.zeros(9, 24)], inames, onames, opts)
+
+    # Forward and reverse modes say the same thing (zero sensitivities), so that casadi never
+    # builds them from the Jacobian with 0 * NaN products in SX graphs.
+    def has_forward(self, nfwd):
+        return True
+
+    def get_forward(self, nfwd, name, inames, onames, opts):
+        x, o, s = ca.SX.sym("x", 24), ca.SX.sym("o", 9), ca.SX.sym("s", 24, nfwd)
+        return ca.Function(name, [x, o, s], [ca.SX.zeros(9, nfwd)], inames, onames, opts)
+
+    def has_reverse(self, nadj):
+        return True
+
+    def get_reverse(self, nadj, name, inames, onames, opts):
+        x, o, s = ca.SX.sym("x", 24), ca.SX.sym("o", 9), ca.SX.sym("s", 9, nadj)
+        return ca.Function(name, [x, o, s], [ca.SX.zeros(24, nadj)], inames, onames, opts)
 
 
 def signed_distance_expr(cb: WitnessCallback, RA, pA, RB, pB):

@@ -310,6 +310,23 @@ def convex_from_points(points: np.ndarray, what: str = "mesh"):
     return coal.Convex.convexHull(vec, False, None)
 
 
+def _merge_link(link: str, gs: list[LinkGeometry]) -> list[LinkGeometry]:
+    """Several shapes on one link -> their joint convex hull (one shape).
+
+    Why: the distance to a union is a minimum over shapes, which is non-smooth where the nearest
+    shape changes (the Panda's fingers are four boxes each, and ipopt stalls on the kinks). The
+    hull is conservative and one coal query instead of several."""
+    if len(gs) == 1:
+        return gs
+    from gnppdsl.geometry.shapes import shape_vertices
+    pts = []
+    for g in gs:
+        v = shape_vertices(g.shape)
+        pts.append(v @ g.placement[:3, :3].T + g.placement[:3, 3])
+    hull = convex_from_points(np.vstack(pts), link)
+    return [LinkGeometry(link + "_hull", hull, np.eye(4))]
+
+
 def _srdf_pairs(geom, model, srdf: str | None) -> None:
     import pinocchio as pin
     geom.addAllCollisionPairs()
@@ -379,6 +396,7 @@ def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_it
         # go.placement is relative to the parent joint; express the shape in the link (body) frame.
         local = fr.placement.inverse() * go.placement
         links.setdefault(fr.name, []).append(LinkGeometry(go.name, go.geometry, np.array(local.homogeneous)))
+    links = {ln: _merge_link(ln, gs) for ln, gs in links.items()}
     self_pairs = set()
     for cp in geom.collisionPairs:
         a = model.frames[geom.geometryObjects[cp.first].parentFrame].name
