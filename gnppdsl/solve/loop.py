@@ -61,7 +61,8 @@ class SolveOptions:
     tolerance: float = 1e-6
     database: str | None = None      # SQLite path (implies switch g)
     max_iter: int = 1000
-    restarts: int = 0                # extra random starts after an infeasible verdict
+    restarts: int | None = None      # extra random starts after an infeasible verdict (None: nlp default)
+    nlp: str = "ipopt"               # casadi plugin: ipopt | sqpmethod
     check_tolerance: float | None = None   # independent re-check threshold (default: tolerance)
 
     @staticmethod
@@ -70,7 +71,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter"):
+                         "database", "max_iter", "nlp"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -130,13 +131,23 @@ def compile_problem(problem: Any) -> Compiled:
     from gnppdsl.compile.task import build_task
     from gnppdsl.nlp.subgraph import Relaxation
 
+    from gnppdsl.compile.factory import scene_robot_dims
+
     task = build_task(problem)
     geometry = None
+    robot_dims = None
     if getattr(problem, "scene", None) is not None:
         from gnppdsl.geometry.context import GeometryContext
 
         geometry = GeometryContext(problem.scene)
-    factory = GraphNLPFactory(problem, task)
+        fallback = scene_robot_dims(problem)
+
+        def robot_dims(robot: str):
+            # joint dimension and limits from the pinocchio model for URDF robots
+            if robot in geometry.models:
+                return geometry.robot_dims(robot)
+            return fallback(robot)
+    factory = GraphNLPFactory(problem, task, robot_dims=robot_dims)
     relaxations = tuple(Relaxation.of(r.name, r.drop) for r in (problem.relaxations or problem.domain.relaxations))
     return Compiled(problem, task, factory, geometry, relaxations, fingerprint(problem))
 
@@ -237,8 +248,6 @@ class _Checker:
                 [v for v in trajs if v not in self.values], self.values,
                 lambda v: [x for h in self.graph.graph.neighbors(v) for x in self.graph.graph.neighbors(h)]))
         r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
-        run.stats.nlp_solves += 1
-        run.stats.nlp_time += r.solve_time
         self.results[key] = r
         if r.feasible:
             self.values.update(r.values)
@@ -281,6 +290,7 @@ class _Run:
         self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
         self.stats.logic_time += time.perf_counter() - t0
         self.compiler = BodyCompiler(compiled.geometry)
+        self.solvers: list[Any] = []      # every FeasibilitySolver of this run (they count NLPs)
         self.db: SubgraphDatabase | None = None
         if "g" in options.switches:
             self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
@@ -300,10 +310,12 @@ class _Run:
         Function cache (BodyCompiler) is shared by the whole run."""
         from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 
+        kw = {} if self.options.restarts is None else {"restarts": self.options.restarts}
         opts = SolverOptions(tolerance=self.options.tolerance, max_iter=self.options.max_iter,
-                             restarts=self.options.restarts,
-                             ipopt={"ipopt.max_wall_time": max(0.05, self.remaining())})
-        return FeasibilitySolver(self.compiled.geometry, opts, compiler=self.compiler)
+                             plugin=self.options.nlp, time_limit=max(0.05, self.remaining()), **kw)
+        solver = FeasibilitySolver(self.compiled.geometry, opts, compiler=self.compiler)
+        self.solvers.append(solver)
+        return solver
 
     def build_graph(self, states: Sequence[Sequence[int]]) -> Any:
         from gnppdsl.nlp.graph import GraphNLP
@@ -353,6 +365,9 @@ class _Run:
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.stats.total_time = time.perf_counter() - self.start
+        # NLPs = ipopt runs (multi-starts and convergence-point solves included), their time
+        self.stats.nlp_solves = sum(s.solves for s in self.solvers)
+        self.stats.nlp_time = sum(s.solve_time for s in self.solvers)
         if self.db is not None:
             self.db.close()
         return Result(problem=self.compiled.name, domain=self.compiled.domain_name,
@@ -403,7 +418,6 @@ class _Run:
             search = find_infeasible_subgraph(graph, self.compiled.relaxations, sw.replace("g", ""),
                                               check=checker, solver=solver,
                                               tolerance=self.options.tolerance)
-            self.stats.nlp_solves += search.stats.heuristic_solves
             if search.subgraph is not None:
                 self.add_conflict(plan, search.subgraph.factor_instances, "nlp",
                                   "" if search.relaxation == "full" else (search.relaxation or ""))
