@@ -564,3 +564,59 @@ def _qmul(a, b):
 def _qrot(q, v):
     r = _qmul(_qmul(q, [v[0], v[1], v[2], 0.0]), [-q[0], -q[1], -q[2], q[3]])
     return r[:3]
+
+
+# ---- readable listing (gnpp compile --emit factors) ------------------------------------------
+_INFIX = {"add": "+", "sub": "-", "mul": "*", "div": "/", "pow": "^"}
+
+
+def format_expr(e, names: Sequence[str]) -> str:
+    """A resolved expression in DSL-like syntax; `Slot(j)` prints as `names[j]`."""
+    if isinstance(e, Num):
+        v = e.value
+        return str(int(v)) if float(v).is_integer() and abs(v) < 1e15 else f"{v:.6g}"
+    if isinstance(e, Str):
+        return f'"{e.value}"'
+    if isinstance(e, Obj):
+        return e.name
+    if isinstance(e, Slot):
+        return names[e.index] if e.index < len(names) else f"${e.index}"
+    if isinstance(e, Vec):
+        return "[" + ", ".join(format_expr(x, names) for x in e.items) + "]"
+    if isinstance(e, Index):
+        stop = f":{format_expr(e.stop, names)}" if e.stop is not None else ""
+        return f"{format_expr(e.base, names)}[{format_expr(e.index, names)}{stop}]"
+    if isinstance(e, Call):
+        if e.fn in _INFIX and len(e.args) == 2:
+            return f"({format_expr(e.args[0], names)} {_INFIX[e.fn]} {format_expr(e.args[1], names)})"
+        if e.fn == "neg":
+            return f"-{format_expr(e.args[0], names)}"
+        return f"{e.fn}(" + ", ".join(format_expr(a, names) for a in e.args) + ")"
+    return repr(e)
+
+
+def format_factor(task: SASTask, f: FactorInstance) -> str:
+    names = [v.name for v in f.variables]
+    gen = "  ".join(f"@{f.step + k} {task.partial_state_str(p)}" for k, p in enumerate(f.generator))
+    lines = [f"{f.label}  tags {{{', '.join(sorted(f.tags))}}}",
+             f"    variables: {', '.join(names) if names else '(none)'}",
+             f"    generator: {gen}"]
+    for c in f.body:
+        lines.append(f"    {format_expr(c.lhs, names)} {c.op} {format_expr(c.rhs, names)}")
+    return "\n".join(lines)
+
+
+def format_factors(task: SASTask, factory: "GraphNLPFactory", states) -> str:
+    """The whole graph-NLP of a state sequence, for people: states, variables, factors."""
+    factors = factory.factors(states)
+    variables = factory.variables(states, factors)
+    out = [f"# graph-NLP of {task.name}: {len(states)} states, {len(variables)} variables, "
+           f"{len(factors)} factors", "", "## states"]
+    out += [f"s{i}: {task.state_str(s)}" for i, s in enumerate(states)]
+    out += ["", "## variables"]
+    for v in variables:
+        extra = f", {v.waypoints} waypoints" if v.waypoints else ""
+        out.append(f"{v.name}  {v.space} (dim {v.dim}{extra})  tags {{{', '.join(sorted(v.tags))}}}")
+    out += ["", "## factors"]
+    out += [format_factor(task, f) for f in factors]
+    return "\n".join(out) + "\n"

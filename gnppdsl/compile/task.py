@@ -20,8 +20,6 @@ from __future__ import annotations
 
 from itertools import product
 
-import networkx as nx
-
 from gnppdsl.compile.ground import MARKER, Binding, bindings, compare_holds, located, term_name, var_name
 from gnppdsl.compile.sas import Axiom, Effect, Fact, Operator, PartialState, SASTask, SASVariable
 from gnppdsl.errors import UserError
@@ -262,6 +260,10 @@ class _Builder:
 
     def layers(self) -> dict[int, int]:
         """Axiom layers by stratification of the ground dependency graph."""
+        if not any(self.derived[v] for ax in self.axioms for v, _ in ax.conditions):
+            return {v: 0 for v, der in enumerate(self.derived) if der}   # no derived inputs
+        import networkx as nx   # only here: it costs ~0.3 s of start-up for `gnpp compile`
+
         g = nx.DiGraph()
         g.add_nodes_from(v for v, der in enumerate(self.derived) if der)
         for ax in self.axioms:

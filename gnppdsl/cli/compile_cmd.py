@@ -1,0 +1,153 @@
+"""`gnpp compile PROBLEM --emit sas|pddl|asp|factors [-o DIR]`: show what the compiler makes.
+
+- `sas`      the grounded SAS+ task as Fast Downward `.sas` text (`PROBLEM.sas`);
+- `pddl`     the same task as PDDL (`domain.pddl` + `PROBLEM.pddl`);
+- `asp`      the clingo program of the logic planner (`PROBLEM.lp`, runs with `clingo FILE`);
+- `factors`  the graph-NLP of a plan: variables and factor instances with their generating
+             partial states (`PROBLEM.factors.txt`); `--plan` gives the actions (default: the
+             initial state only, i.e. the factors of s_0).
+`--conflicts FILE` first applies the Appendix-B reformulation for every conflict in FILE, so
+the emitted task forbids them. Without `-o` a single output goes to stdout.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EPILOG = """examples:
+  gnpp compile examples/planar/p1_one_block.pntc --emit sas
+  gnpp compile examples/planar/p1_one_block.pntc --emit pddl -o out/
+  gnpp compile examples/planar/p3_occupied.pntc --emit factors --plan "pick(b1, g, s1); place(b1, g, target)"
+  gnpp compile examples/planar/p3_occupied.pntc --emit sas --conflicts conflicts.txt
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = EPILOG
+    parser.add_argument("paths", nargs="+", metavar="PROBLEM",
+                        help="the problem file (.pntc); a domain file may be given before it")
+    parser.add_argument("--emit", choices=("sas", "pddl", "asp", "factors"), default="sas",
+                        help="what to write (default: sas)")
+    parser.add_argument("-o", "--output", metavar="DIR", default=None,
+                        help="write the file(s) into DIR (created if needed) instead of stdout")
+    parser.add_argument("--plan", metavar="PLAN|FILE", default=None,
+                        help="for --emit factors: actions applied from s_0, e.g. "
+                             "\"pick(b1, g, s1); place(b1, g, right)\", or a file with one action "
+                             "per line (Fast Downward plan files work too)")
+    parser.add_argument("--conflicts", metavar="FILE", default=None,
+                        help="forbid the conflicts in FILE (one <{..}, {..}> sequence of partial "
+                             "states per line) before emitting sas, pddl or asp")
+
+
+def run(args: argparse.Namespace) -> int:
+    from gnppdsl.errors import UserError
+
+    if args.plan is not None and args.emit != "factors":
+        raise UserError("--plan only applies to --emit factors")
+    if args.conflicts is not None and args.emit == "factors":
+        raise UserError("--conflicts applies to --emit sas, pddl or asp, not factors")
+    problem = _load(args.paths)
+    from gnppdsl.compile.task import build_task
+
+    task = build_task(problem)
+    if args.conflicts is not None:
+        task = _forbid(task, args.conflicts)
+    stem = _safe(problem.name)
+    files: list[tuple[str, str]]
+    if args.emit == "sas":
+        from gnppdsl.compile.sas_writer import write_sas
+
+        files = [(f"{stem}.sas", write_sas(task))]
+    elif args.emit == "pddl":
+        from gnppdsl.compile.pddl import write_pddl
+
+        out = write_pddl(task, problem.domain.name)
+        files = [("domain.pddl", out.domain), (f"{stem}.pddl", out.problem)]
+    elif args.emit == "asp":
+        files = [(f"{stem}.lp", _asp(task))]
+    else:
+        files = [(f"{stem}.factors.txt", _factors(problem, task, args.plan))]
+    _write(files, args.output)
+    return 0
+
+
+def _load(paths):
+    from gnppdsl.errors import UserError
+
+    for p in paths:
+        if not Path(p).is_file():
+            raise UserError(f"{p}: no such file")
+    try:
+        from gnppdsl.ir import load_problem
+    except ImportError:
+        raise UserError("the .pntc loader (gnppdsl.ir.load_problem) is not available in this build") from None
+    return load_problem(*paths)
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name) or "problem"
+
+
+def _forbid(task, path):
+    from gnppdsl.errors import UserError
+
+    try:
+        from gnppdsl.logic.conflict_io import read_conflicts
+        from gnppdsl.logic.reformulation import forbid_sequences
+    except ImportError:
+        raise UserError("--conflicts needs gnppdsl.logic.reformulation and conflict_io, "
+                        "which are not available in this build") from None
+    conflicts = read_conflicts(path, task)
+    return forbid_sequences(task, conflicts) if conflicts else task
+
+
+def _asp(task) -> str:
+    from gnppdsl.errors import UserError
+
+    try:
+        from gnppdsl.logic.encoding import encode_task
+    except ImportError:
+        raise UserError("--emit asp needs gnppdsl.logic.encoding, which is not available "
+                        "in this build") from None
+    return encode_task(task, standalone=True)
+
+
+def _factors(problem, task, plan) -> str:
+    from gnppdsl.compile.factory import GraphNLPFactory, format_factors
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+    from gnppdsl.errors import UserError
+
+    text = ""
+    if plan is not None:
+        path = Path(plan)
+        if path.is_file():
+            text = path.read_text()
+        elif "(" not in plan and plan.strip() and (path.suffix or "/" in plan):
+            raise UserError(f"--plan {plan}: no such file")
+        else:
+            text = plan
+    states = plan_states(task, parse_plan(task, text))
+    factory = GraphNLPFactory(problem, task)
+    return format_factors(task, factory, states)
+
+
+def _write(files, out_dir) -> None:
+    from gnppdsl.errors import UserError
+
+    if out_dir is None:
+        for k, (name, text) in enumerate(files):
+            if len(files) > 1:
+                sys.stdout.write(f"{';' if name.endswith('.pddl') else '#'} ---- {name} ----\n")
+            sys.stdout.write(text)
+        return
+    d = Path(out_dir)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        for name, text in files:
+            (d / name).write_text(text)
+    except OSError as exc:
+        raise UserError(f"{out_dir}: cannot write: {exc.strerror or exc}") from None
+    for name, _ in files:
+        print(d / name)
