@@ -320,6 +320,8 @@ class GraphNLPFactory:
                 raise UserError(located(e.span, f"{ctx.where}: index {k} out of range"))
             return base.items[k]
         stop = None if e.stop is None else Num(self._int(e.stop, ctx, acc))
+        if isinstance(base, Vec) and stop is not None:
+            return Vec(base.items[k:int(stop.value)], span=e.span)
         return Index(base, Num(k), stop, span=e.span)
 
     def _call(self, e: Call, ctx: _Ctx, acc: _Factor):
@@ -332,8 +334,14 @@ class GraphNLPFactory:
             return self._world(self._object(e.args[0], ctx, acc), ctx, acc, e)
         if fn == "waypoints":
             arg = e.args[0]
-            if isinstance(arg, Index):
-                arg = arg.base
+            while isinstance(arg, (Index, Param)):
+                if isinstance(arg, Index):
+                    arg = arg.base
+                else:   # a value parameter bound to a trajectory term, `waypoints(t)`
+                    bound = ctx.params.get(arg.name)
+                    if not isinstance(bound, tuple):
+                        break
+                    arg = bound[1]
             if not isinstance(arg, CVar) or not self.domain.continuous.get(arg.name, None) \
                     or not self.domain.continuous[arg.name].traj:
                 raise UserError(located(e.span, f"{ctx.where}: waypoints() needs a trajectory"))
@@ -444,6 +452,10 @@ class GraphNLPFactory:
             return tuple(shape.size)
         if name == "radius" and shape is not None and shape.kind in ("circle", "sphere", "cylinder"):
             return shape.size[0]
+        if name in ("joint_min", "joint_max") and obj in getattr(self.scene, "robots", {}):
+            _, lo, hi = self.robot_dims(obj)
+            bound = lo if name == "joint_min" else hi
+            return tuple(bound) if bound is not None else None
         if name == "home" and getattr(ent, "home", None):
             return tuple(ent.home)
         if name in ("pose0", "pose"):
