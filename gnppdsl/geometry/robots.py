@@ -191,10 +191,14 @@ class RobotModel:
         return self.model.getFrameId(frame)
 
     def home_coords(self, home: tuple[float, ...] = ()) -> np.ndarray:
+        """The scene's `home`, else the SRDF "default" state, else pinocchio's neutral
+        configuration clipped into the limits (the Panda's neutral q4 = 0 violates its limit)."""
         if home:
             return np.asarray(home, dtype=float)
         import pinocchio as pin
-        return self.from_pin_q(pin.neutral(self.model))
+        refs = self.model.referenceConfigurations
+        q = np.array(refs["default"]) if "default" in refs else np.array(pin.neutral(self.model))
+        return np.clip(self.from_pin_q(q), self.lower, self.upper)
 
 
 def se3_to_matrix(pose) -> np.ndarray:
@@ -389,6 +393,11 @@ def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_it
     for go in geom.geometryObjects:
         go.geometry = _convexify(go.geometry, f"{name}/{go.name}")
     _srdf_pairs(geom, model, srdf)
+    if srdf:
+        try:
+            pin.loadReferenceConfigurations(model, srdf, False)
+        except Exception:   # states naming locked joints etc.: home falls back to neutral
+            pass
     coords, nc, lower, upper = _coords_of(model)
     links: dict[str, list[LinkGeometry]] = {}
     for go in geom.geometryObjects:

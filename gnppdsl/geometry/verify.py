@@ -1,0 +1,351 @@
+"""Independent verification primitives: pinocchio + coal on numbers, never the casadi path.
+
+Why separate from the NLP: a solution is only trusted if a second computation, which shares no
+code with the constraint functions the solver saw, agrees. Here forward kinematics is
+`pin.framesForwardKinematics` and distances are direct `coal.distance` calls on the same convex
+shapes; nothing goes through `kinematics.py` or the casadi callback.
+
+A *state* is a dict entity name -> value:
+- scene object: world pose, SE3 7-vector (3-D scenes) or SE2 [x, y, theta] (planar scenes);
+- URDF robot: joint coordinates, or {"q": coords, "base": SE3 7-vector} for a moving base;
+- planar robot: its SE2 (or SE3) pose.
+Entities missing from a state keep their scene pose (robots: home configuration).
+
+Pairs are named "b1", "table", "left/panda_hand"; an ignore set holds frozensets of two names,
+where a robot name stands for all its links.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any, Iterable
+
+import numpy as np
+
+from gnppdsl.errors import UserError
+from gnppdsl.geometry.distance import ConvexBody, se2_to_matrix, witness
+from gnppdsl.geometry.robots import se3_to_matrix
+from gnppdsl.geometry.shapes import shape_vertices
+
+
+@dataclass(frozen=True)
+class PairDistance:
+    a: str
+    b: str
+    distance: float
+
+    def __str__(self) -> str:
+        return f"{self.a} <-> {self.b}: {self.distance:+.4f}"
+
+
+@dataclass(frozen=True)
+class LimitViolation:
+    robot: str
+    coordinate: int
+    joint: str
+    value: float
+    lower: float
+    upper: float
+
+    @property
+    def amount(self) -> float:
+        return max(self.lower - self.value, self.value - self.upper, 0.0)
+
+
+@dataclass(frozen=True)
+class GraspCheck:
+    inside: bool
+    local: tuple[float, float, float]      # the point in the end-effector frame
+    half_extents: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class RestingCheck:
+    ok: bool
+    gap: float | None        # object bottom - support top (3-D), None for planar scenes
+    inside: bool             # object centre over the support's top face / inside its footprint
+    distance: float          # coal signed distance object-support
+
+
+@dataclass
+class _Placed:
+    """A collision body at a world pose (4x4)."""
+
+    name: str
+    owner: str               # entity name (robot for links)
+    body: ConvexBody
+    T: np.ndarray
+    static: bool = False
+
+
+def _as_ctx(ctx_or_scene, models=None):
+    from gnppdsl.geometry.context import GeometryContext
+    if isinstance(ctx_or_scene, GeometryContext):
+        return ctx_or_scene
+    return GeometryContext(ctx_or_scene, models)
+
+
+def entity_matrix(ctx, name: str, value) -> np.ndarray:
+    """World 4x4 of an object or planar robot from a state value (SE3 7-vector or SE2 3-vector)."""
+    v = np.asarray(value, dtype=float).ravel()
+    if v.size == 7:
+        return se3_to_matrix(v)
+    if v.size == 3:
+        return se2_to_matrix(v)
+    raise UserError(f"pose of '{name}' must be SE3 (7 numbers) or SE2 (3 numbers), got {v.size}")
+
+
+def scene_value(ctx, name: str):
+    """The value an entity has when a state does not mention it."""
+    sc = ctx.scene
+    if name in sc.objects:
+        o = sc.objects[name]
+        return o.pose2 if (sc.dimension == 2 and o.pose2 is not None) else o.pose
+    spec = sc.robots[name]
+    if spec.kind == "urdf":
+        return ctx.robot(name).home_coords(spec.home)
+    return spec.home if spec.home else spec.base
+
+
+def robot_q_base(ctx, name: str, value) -> tuple[np.ndarray, np.ndarray]:
+    if isinstance(value, dict):
+        q = np.asarray(value["q"], dtype=float)
+        base = np.asarray(value.get("base", ctx.scene.robots[name].base), dtype=float)
+    else:
+        q = np.asarray(value, dtype=float)
+        base = np.asarray(ctx.scene.robots[name].base, dtype=float)
+    r = ctx.robot(name)
+    if q.size != r.nc:
+        raise UserError(f"robot {name}: a configuration needs {r.nc} numbers, got {q.size}")
+    return q, base
+
+
+def link_placements(ctx, robot: str, q, base=None) -> dict[str, np.ndarray]:
+    """World 4x4 of every collision link of a robot, by pinocchio."""
+    import pinocchio as pin
+    r = ctx.robot(robot)
+    data = r.model.createData()
+    pin.framesForwardKinematics(r.model, data, r.to_pin_q(q))
+    B = r.base if base is None else se3_to_matrix(base)
+    return {ln: B @ np.array(data.oMf[r.model.getFrameId(ln)].homogeneous) for ln in r.links}
+
+
+def placed_bodies(ctx, state: dict[str, Any]) -> list[_Placed]:
+    planar = ctx.scene.dimension == 2
+    out: list[_Placed] = []
+    for name, o in ctx.scene.objects.items():
+        if o.shape.kind == "none":
+            continue
+        val = state.get(name, scene_value(ctx, name))
+        out.append(_Placed(name, name, ctx.body(name, planar), entity_matrix(ctx, name, val), o.static))
+    for name, spec in ctx.scene.robots.items():
+        val = state.get(name, scene_value(ctx, name))
+        if spec.kind == "urdf":
+            q, base = robot_q_base(ctx, name, val)
+            for ln, T in link_placements(ctx, name, q, base).items():
+                out.append(_Placed(f"{name}/{ln}", name, ctx.body(("link", name, ln)), T))
+        elif spec.shape is not None and spec.shape.kind != "none":
+            out.append(_Placed(name, name, ctx.body(name, planar), entity_matrix(ctx, name, val)))
+    return out
+
+
+def _names(p: _Placed) -> set[str]:
+    s = {p.name, p.owner}
+    if "/" in p.name:
+        s.add(p.name.split("/", 1)[1])
+    return s
+
+
+def _ignored(a: _Placed, b: _Placed, ignore: set[frozenset]) -> bool:
+    for x in _names(a):
+        for y in _names(b):
+            if frozenset((x, y)) in ignore:
+                return True
+    return False
+
+
+def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterable[str]] = (), models=None,
+                   self_collision: bool = True) -> list[PairDistance]:
+    """Signed distances of every relevant pair, smallest first.
+
+    Relevant: object-object (unless both static), robot link-object, links of different robots,
+    and each robot's self-collision pairs (SRDF-filtered); minus the scene's
+    `ignore_collisions` and `ignore` (e.g. a held object and its robot, a block and its support).
+    """
+    ctx = _as_ctx(ctx_or_scene, models)
+    ign = {frozenset(p) for p in ctx.scene.ignore_collisions} | {frozenset(p) for p in ignore}
+    bodies = placed_bodies(ctx, state)
+    self_pairs = {name: {frozenset(p) for p in ctx.robot(name).self_pairs}
+                  for name, s in ctx.scene.robots.items() if s.kind == "urdf"} if self_collision else {}
+    out = []
+    for a, b in itertools.combinations(bodies, 2):
+        if a.static and b.static:
+            continue
+        if a.owner == b.owner:
+            if a.owner not in self_pairs:
+                continue
+            la, lb = a.name.split("/", 1)[1], b.name.split("/", 1)[1]
+            if frozenset((la, lb)) not in self_pairs[a.owner]:
+                continue
+        if _ignored(a, b, ign):
+            continue
+        d = witness(a.body, a.T[:3, :3], a.T[:3, 3], b.body, b.T[:3, :3], b.T[:3, 3])[0]
+        out.append(PairDistance(a.name, b.name, float(d)))
+    out.sort(key=lambda p: p.distance)
+    return out
+
+
+def collisions(ctx_or_scene, state: dict[str, Any], margin: float = 0.0, ignore: Iterable[Iterable[str]] = (),
+               models=None, tol: float = 1e-6) -> list[PairDistance]:
+    """Pairs closer than `margin - tol` (empty list: the state is collision-free beyond the margin)."""
+    return [p for p in pair_distances(ctx_or_scene, state, ignore, models) if p.distance < margin - tol]
+
+
+def joint_limit_violations(ctx_or_scene, robot: str, q, tol: float = 1e-6, models=None) -> list[LimitViolation]:
+    ctx = _as_ctx(ctx_or_scene, models)
+    r = ctx.robot(robot)
+    q = np.asarray(q, dtype=float).ravel()
+    out = []
+    for jc in r.coords:
+        for k in range(jc.idx_c, jc.idx_c + jc.nc):
+            if q[k] < r.lower[k] - tol or q[k] > r.upper[k] + tol:
+                out.append(LimitViolation(robot, k, jc.name, float(q[k]), float(r.lower[k]), float(r.upper[k])))
+    return out
+
+
+DEFAULT_GRASP_BOX = (0.02, 0.04, 0.03)   # half extents around a parallel gripper's TCP (x, y, z)
+
+
+def point_in_gripper(ctx_or_scene, robot: str, value, point, half_extents: tuple[float, ...] | None = None,
+                     frame: str | None = None, models=None) -> GraspCheck:
+    """Is a world point inside the grasp region of a robot's end effector?
+
+    URDF robots: the box `half_extents` (default: the robot's `grasp_box` attribute or
+    DEFAULT_GRASP_BOX) centred at the end-effector frame (`frame` or the scene `ee`), in that frame.
+    Planar robots (`value` an SE2/SE3 pose): the same box in the robot's frame (z ignored in 2-D).
+    """
+    ctx = _as_ctx(ctx_or_scene, models)
+    spec = ctx.scene.robots.get(robot)
+    if spec is None:
+        raise UserError(f"unknown robot '{robot}'")
+    he = half_extents or tuple(spec.attributes.get("grasp_box", DEFAULT_GRASP_BOX))
+    if spec.kind == "urdf":
+        fr = frame or spec.ee
+        if fr is None:
+            raise UserError(f"robot {robot} has no end-effector frame (`ee:` in the scene)")
+        q, base = robot_q_base(ctx, robot, value)
+        T = ctx.fk_matrix(robot, q, fr, base)
+    else:
+        T = entity_matrix(ctx, robot, value)
+    p = np.asarray(point, dtype=float).ravel()
+    if p.size == 2:
+        p = np.r_[p, 0.0]
+    local = T[:3, :3].T @ (p - T[:3, 3])
+    inside = all(abs(local[i]) <= he[i] + 1e-9 for i in range(min(3, len(he))))   # 2 extents: planar
+    return GraspCheck(bool(inside), tuple(float(x) for x in local), tuple(he))
+
+
+def _hull2(pts: np.ndarray) -> np.ndarray:
+    """2-D convex hull (Andrew's monotone chain), counter-clockwise."""
+    P = sorted(set(map(tuple, np.round(pts, 12))))
+    if len(P) <= 2:
+        return np.array(P)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    lower, upper = [], []
+    for p in P:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(P):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def _in_polygon(pt, poly: np.ndarray, tol: float = 1e-9) -> bool:
+    n = len(poly)
+    if n < 3:
+        return False
+    for i in range(n):
+        a, b = poly[i], poly[(i + 1) % n]
+        if (b[0] - a[0]) * (pt[1] - a[1]) - (b[1] - a[1]) * (pt[0] - a[0]) < -tol:
+            return False
+    return True
+
+
+def world_vertices(body: ConvexBody, T: np.ndarray) -> np.ndarray:
+    pts = []
+    for s, M in zip(body.shapes, body.placements):
+        W = T @ M
+        pts.append(shape_vertices(s) @ W[:3, :3].T + W[:3, 3])
+    return np.vstack(pts)
+
+
+def resting_on(ctx_or_scene, obj: str, obj_value, support: str, support_value=None, tol: float = 1e-3,
+               models=None) -> RestingCheck:
+    """Does `obj` rest on `support`?
+
+    3-D: the object's lowest point is within `tol` of the support's highest point, its centre
+    projects inside the support's top face, and the two do not penetrate deeper than `tol`.
+    Planar: the object's centre lies inside the support's footprint (a region on the table).
+    """
+    ctx = _as_ctx(ctx_or_scene, models)
+    planar = ctx.scene.dimension == 2
+    if support_value is None:
+        support_value = scene_value(ctx, support)
+    To, Ts = entity_matrix(ctx, obj, obj_value), entity_matrix(ctx, support, support_value)
+    bo = ctx.body(obj, planar)
+    bs = ctx.body(support, planar)
+    d = float(witness(bo, To[:3, :3], To[:3, 3], bs, Ts[:3, :3], Ts[:3, 3])[0])
+    vs = world_vertices(bs, Ts)
+    if planar:
+        inside = _in_polygon(To[:2, 3], _hull2(vs[:, :2]))
+        return RestingCheck(inside, None, inside, d)
+    vo = world_vertices(bo, To)
+    top = vs[:, 2].max()
+    gap = float(vo[:, 2].min() - top)
+    top_face = vs[vs[:, 2] >= top - 1e-6][:, :2]
+    inside = _in_polygon(To[:2, 3], _hull2(top_face)) if len(top_face) >= 3 else False
+    ok = abs(gap) <= tol and inside and d >= -tol
+    return RestingCheck(bool(ok), gap, bool(inside), d)
+
+
+@dataclass
+class StateReport:
+    """Summary of one state: its closest pairs and limit violations."""
+
+    distances: list[PairDistance]
+    limits: list[LimitViolation]
+    margin: float
+
+    @property
+    def collisions(self) -> list[PairDistance]:
+        return [p for p in self.distances if p.distance < self.margin - 1e-6]
+
+    @property
+    def ok(self) -> bool:
+        return not self.collisions and not self.limits
+
+    def __str__(self) -> str:
+        lines = [f"min distance {self.distances[0]}" if self.distances else "no collision pairs"]
+        lines += [f"collision: {p}" for p in self.collisions]
+        lines += [f"joint limit: {v.robot}.{v.joint} = {v.value:.4f} not in [{v.lower:.4f}, {v.upper:.4f}]"
+                  for v in self.limits]
+        return "\n".join(lines)
+
+
+def check_state(ctx_or_scene, state: dict[str, Any], margin: float = 0.0, ignore: Iterable[Iterable[str]] = (),
+                models=None) -> StateReport:
+    """Distances of all relevant pairs and joint-limit violations of all URDF robots in a state."""
+    ctx = _as_ctx(ctx_or_scene, models)
+    dists = pair_distances(ctx, state, ignore)
+    lims = []
+    for name, spec in ctx.scene.robots.items():
+        if spec.kind == "urdf":
+            q, _ = robot_q_base(ctx, name, state.get(name, scene_value(ctx, name)))
+            lims += joint_limit_violations(ctx, name, q)
+    return StateReport(dists, lims, margin)
+
