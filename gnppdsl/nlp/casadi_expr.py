@@ -385,10 +385,23 @@ class BodyCompiler:
     def __init__(self, geometry: Geometry | None = None):
         self.geometry = geometry
         self._cache: dict[tuple, CompiledBody] = {}
+        # per-instance memo (by identity; the instance is kept alive in the value): lifting and
+        # hashing a body costs more than a lookup, and every subgraph re-assembles its factors
+        self._instances: dict[int, tuple[FactorInstance, CompiledBody, np.ndarray]] = {}
         self.compiled = 0           # number of distinct Functions built (for stats / tests)
 
     def compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
         """(compiled body, parameter values) for one factor instance."""
+        hit = self._instances.get(id(factor))
+        if hit is not None and hit[0] is factor:
+            return hit[1], hit[2]
+        cb, params = self._compile(factor)
+        if len(self._instances) > 200_000:
+            self._instances.clear()
+        self._instances[id(factor)] = (factor, cb, params)
+        return cb, params
+
+    def _compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
         key_body, params = lift_constants(factor.body)
         sigs = tuple(SlotSignature.of(v) for v in factor.variables)
         key = (factor.template, key_body, sigs)

@@ -48,7 +48,7 @@ class SolverOptions:
     plugin: str = "ipopt"          # casadi nlpsol plugin: "ipopt" or "sqpmethod" (qrqp)
     time_limit: float | None = None   # wall-clock seconds per ipopt run
     cache_size: int = 512          # assembled NLPs kept (LRU) per FeasibilitySolver
-    polish: bool = True            # re-solve infeasible verdicts with rho * 1e-4 from x*
+    polish: bool = True            # re-solve an infeasible verdict with rho * 1e-4 from x*
 
     def nlpsol_options(self) -> dict:
         if self.plugin == "sqpmethod":
@@ -313,18 +313,20 @@ class FeasibilitySolver:
             iters += it
             starts += 1
             values, per, worst = self._verdict(a, x)
-            if worst > tol and self.options.polish:
-                # The pull towards the start can outweigh the L1 penalty on badly scaled rows
-                # (gradient below rho): re-solve from x* with a much weaker pull before
-                # believing an infeasible verdict.
-                x, slack, it, status = self._run(a, x, self.options.regularisation * 1e-4)
-                iters += it
-                values, per, worst = self._verdict(a, x)
             if best is None or worst < best[2]:
-                best = (values, per, worst, slack, status)
+                best = (values, per, worst, slack, status, x)
             if worst <= tol:
                 break
-        values, per, worst, slack, status = best
+        if best[2] > tol and self.options.polish:
+            # The pull towards the start can outweigh the L1 penalty of a badly scaled row
+            # (gradient below rho): re-solve the best point with a much weaker pull before
+            # believing an infeasible verdict.
+            x, slack, it, status = self._run(a, best[5], self.options.regularisation * 1e-4)
+            iters += it
+            values, per, worst = self._verdict(a, x)
+            if worst < best[2]:
+                best = (values, per, worst, slack, status, x)
+        values, per, worst, slack, status, _ = best
         dt = time.perf_counter() - t0
         self.solve_time += dt
         return FeasibilityResult(worst <= tol, values, per, worst, slack, dt, iters, status,
