@@ -120,7 +120,8 @@ class SubgraphDatabase:
                 _names_from_json(conflict),
                 wl,
             )
-            (self.feasible if entry.feasible else self.infeasible).append(entry)
+            # records written before a dominating one was found are pruned in memory
+            self._insert(entry)
         self.stats.loaded = len(rows)
 
     def _persist(self, entry: Entry) -> None:
@@ -190,19 +191,29 @@ class SubgraphDatabase:
         sg = self.graph_of(subgraph)
         if sg.graph.number_of_nodes() == 0:
             return False
-        if feasible:
+        entry = Entry(sg, feasible, conflict, "")
+        if not self._insert(entry):
+            return False
+        entry.wl_hash = sg.wl_hash()
+        self._persist(entry)
+        self.stats.stored += 1
+        return True
+
+    def _insert(self, entry: Entry) -> bool:
+        """Add to the in-memory lists unless dominated; drop the records it dominates.
+        Infeasible records stay sorted by size so the smallest known conflict is found first."""
+        sg = entry.graph
+        if entry.feasible:
             if any(contains(e.graph, sg) for e in self.feasible):
                 return False
-            # keep the in-memory list small: drop records the new one dominates
             self.feasible = [e for e in self.feasible if not contains(sg, e.graph)]
+            self.feasible.append(entry)
         else:
             if any(contains(sg, e.graph) for e in self.infeasible):
                 return False
             self.infeasible = [e for e in self.infeasible if not contains(e.graph, sg)]
-        entry = Entry(sg, feasible, conflict, sg.wl_hash())
-        (self.feasible if feasible else self.infeasible).append(entry)
-        self._persist(entry)
-        self.stats.stored += 1
+            self.infeasible.append(entry)
+            self.infeasible.sort(key=lambda e: (e.graph.n_factors, e.graph.graph.number_of_nodes()))
         return True
 
     def __len__(self) -> int:

@@ -248,6 +248,7 @@ class _Checker:
                 [v for v in trajs if v not in self.values], self.values,
                 lambda v: [x for h in self.graph.graph.neighbors(v) for x in self.graph.graph.neighbors(h)]))
         r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
+        run.nlp_calls += 1
         self.results[key] = r
         if r.feasible:
             self.values.update(r.values)
@@ -290,7 +291,9 @@ class _Run:
         self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
         self.stats.logic_time += time.perf_counter() - t0
         self.compiler = BodyCompiler(compiled.geometry)
-        self.solvers: list[Any] = []      # every FeasibilitySolver of this run (they count NLPs)
+        self.solvers: list[Any] = []      # every FeasibilitySolver of this run (ipopt runs, time)
+        self.nlp_calls = 0                # NLPs solved through _Checker.solve
+        self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
         self.db: SubgraphDatabase | None = None
         if "g" in options.switches:
             self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
@@ -365,8 +368,10 @@ class _Run:
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.stats.total_time = time.perf_counter() - self.start
-        # NLPs = ipopt runs (multi-starts and convergence-point solves included), their time
-        self.stats.nlp_solves = sum(s.solves for s in self.solvers)
+        # NLPs = feasibility problems solved (each may take several ipopt runs: restarts and
+        # a polish before an infeasible verdict, counted in ipopt_runs); time of all of them
+        self.stats.nlp_solves = self.nlp_calls + self.heuristic_solves
+        self.stats.ipopt_runs = sum(s.solves for s in self.solvers)
         self.stats.nlp_time = sum(s.solve_time for s in self.solvers)
         if self.db is not None:
             self.db.close()
@@ -394,9 +399,6 @@ class _Run:
                                            f"after {self.stats.plans} plans")
 
     def gnpp(self) -> Result:
-        from gnppdsl.nlp.subgraph import find_infeasible_subgraph
-
-        sw = self.options.switches
         while True:
             res = self.next_plan(enumerate_=False)
             if not res.found:
@@ -413,31 +415,60 @@ class _Run:
                     self.stats.db_infeasible_hits += 1
                     self.add_conflict(plan, known, "database", "")
                     continue
-            solver = self.new_solver()
-            checker = _Checker(self, solver, graph, use_db=self.db is not None)
-            search = find_infeasible_subgraph(graph, self.compiled.relaxations, sw.replace("g", ""),
-                                              check=checker, solver=solver,
-                                              tolerance=self.options.tolerance)
-            if search.subgraph is not None:
-                self.add_conflict(plan, search.subgraph.factor_instances, "nlp",
-                                  "" if search.relaxation == "full" else (search.relaxation or ""))
+            outcome = self.evaluate(graph, use_db=self.db is not None)
+            if outcome[0] == "conflict":
+                self.add_conflict(plan, outcome[1], "nlp", outcome[2])
                 continue
-            values = dict(search.values) if search.complete_values else {}
-            if not values:
-                # some components were answered by the database: solve the full graph for values
-                r = _Checker(self, solver, graph, use_db=False).solve(graph)
-                if not r.feasible:
-                    # the database claimed feasible but the solver disagrees: search without it
-                    s2 = find_infeasible_subgraph(graph, self.compiled.relaxations, sw.replace("g", ""),
-                                                  check=_Checker(self, self.new_solver(), graph, False),
-                                                  solver=self.new_solver(), tolerance=self.options.tolerance)
-                    if s2.subgraph is not None:
-                        self.add_conflict(plan, s2.subgraph.factor_instances, "nlp", s2.relaxation or "")
-                    else:
-                        self.planner.block_plan(plan)
+            if outcome[0] == "solution":
+                return self.solution(plan, graph, outcome[1])
+            # the solver contradicted itself (infeasible as a whole, every component feasible):
+            # no sound conflict, so only this plan is given up
+            self.say(f"  plan blocked: {outcome[1]}")
+            self.planner.block_plan(plan)
+
+    def evaluate(self, graph: Any, use_db: bool) -> tuple:
+        """Algorithm 1 on one plan's graph-NLP, relaxations loose -> tight, the full graph last.
+
+        Each relaxed graph G_r is first checked as a whole (one NLP; by Property 4.5 it is
+        feasible iff all its components are), and only an infeasible G_r is searched component
+        by component with the double binary search on time and the convergence heuristic
+        (`find_infeasible_subgraph`). Same verdicts as Alg. 1, fewer NLPs when G_r is feasible.
+        Returns ("solution", values) | ("conflict", factors, relaxation) | ("inconsistent", why).
+        """
+        from gnppdsl.nlp.subgraph import find_infeasible_subgraph
+
+        sw = self.options.switches
+        solver = self.new_solver()
+        checker = _Checker(self, solver, graph, use_db=use_db)
+        rules = [r for r in self.compiled.relaxations if r.dropped] if "r" in sw else []
+        for rule in [*rules, None]:
+            g_r = graph.apply_relaxation(rule.dropped, rule.name) if rule is not None else graph
+            if g_r.n_factors == 0:
+                continue
+            verdict = checker(g_r)
+            feasible = verdict.feasible if hasattr(verdict, "feasible") else bool(verdict)
+            if feasible:
+                if rule is not None:
                     continue
-                values = r.values
-            return self.solution(plan, graph, values)
+                if hasattr(verdict, "values") and all(v in verdict.values for v in graph.variables):
+                    return ("solution", verdict.values)
+                r = checker.solve(graph)          # the database said feasible: get the values
+                if r.feasible:
+                    return ("solution", r.values)
+                if use_db:                        # the solver disagrees with the database
+                    return self.evaluate(graph, use_db=False)
+                return ("inconsistent", "the full graph-NLP failed after a feasible verdict")
+            search = find_infeasible_subgraph(g_r, (), sw.replace("r", "").replace("g", ""), check=checker,
+                                              solver=solver, tolerance=self.options.tolerance)
+            self.heuristic_solves += search.stats.heuristic_solves
+            sub = search.subgraph if search.subgraph is not None else g_r
+            if search.subgraph is None and not isinstance(verdict, bool):
+                # components all feasible, the whole infeasible: trust the whole (multi-start verdict)
+                self.say("  components feasible but the whole relaxation infeasible; using the whole")
+            elif search.subgraph is None:
+                return ("inconsistent", "the database's infeasible verdict was not reproduced")
+            return ("conflict", tuple(sub.factor_instances), rule.name if rule is not None else "")
+        return ("solution", {})
 
     def oneway(self) -> Result:
         while True:

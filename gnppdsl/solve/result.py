@@ -64,6 +64,7 @@ class Step:
 @dataclass
 class Stats:
     nlp_solves: int = 0               # NLPs handed to the solver (database hits not counted)
+    ipopt_runs: int = 0               # solver runs behind them (multi-starts, polish re-solves)
     nlp_time: float = 0.0             # seconds inside the NLP solver
     logic_time: float = 0.0           # seconds in the logic planner (incl. adding conflicts)
     factory_time: float = 0.0         # seconds building graph-NLPs
@@ -154,7 +155,7 @@ class Result:
             if len(self.conflicts) > max_conflicts:
                 lines.append(f"  ... {len(self.conflicts) - max_conflicts} more (see --json)")
         lines.append(
-            f"stats: NLPs {s.nlp_solves} ({s.nlp_time:.2f} s), logic {s.logic_time:.2f} s, "
+            f"stats: NLPs {s.nlp_solves} ({s.ipopt_runs} solver runs, {s.nlp_time:.2f} s), logic {s.logic_time:.2f} s, "
             f"factory {s.factory_time:.2f} s, plans {s.plans}, conflicts {s.conflicts}, "
             f"N0 {_opt(s.N0)}, N {_opt(s.N)}, total {s.total_time:.2f} s"
         )

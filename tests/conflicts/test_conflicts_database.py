@@ -201,3 +201,17 @@ def test_killed_writer_never_corrupts_the_file(tmp_path: Path):
         db.add([same("fresh", 0, 0)], True)               # still writable after the crash
     with SubgraphDatabase(path, scope="planar", fingerprint="f") as db:
         assert db.stats.loaded == 26
+
+
+def test_reload_prunes_records_dominated_later(tmp_path: Path):
+    path = tmp_path / "db.sqlite"
+    big = [at_spot("b1", 0, (0, 0), PARENT_B1, 0), at_spot("b1", 0, (3, 0), PARENT_B1, 0)] + chain("b1", 0, 2)
+    small = [at_spot("b1", 0, (0, 0), PARENT_B1, 0), at_spot("b1", 0, (3, 0), PARENT_B1, 0)]
+    with SubgraphDatabase(path, scope="s", fingerprint="f") as db:
+        assert db.add(big, False)
+        assert db.add(small, False)          # dominates `big` in memory; both rows are on disk
+        assert len(db.infeasible) == 1
+    with SubgraphDatabase(path, scope="s", fingerprint="f") as db:
+        assert db.stats.loaded == 2 and len(db.infeasible) == 1
+        found = db.infeasible_inside(big + chain("b2", 0, 3, 1))
+        assert found is not None and len(found) == 2      # the smallest known conflict
