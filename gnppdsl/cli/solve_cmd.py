@@ -7,7 +7,6 @@ Heavy imports (casadi, clingo, the solver) happen inside `run`, so `gnpp --help`
 from __future__ import annotations
 
 import argparse
-import sys
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -72,19 +71,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _render(compiled, result, directory: str) -> None:
-    from pathlib import Path
+    from gnppdsl.solve.keyframes import render_solution
 
-    from gnppdsl.errors import UserError
-
-    try:
-        from gnppdsl.geometry.render import render_keyframes
-    except ImportError:
-        print("gnpp: --render is not available in this build (no gnppdsl.geometry.render)", file=sys.stderr)
-        return
-    out = Path(directory)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"--render {directory}: {exc.strerror or exc}") from None
-    files = render_keyframes(compiled.problem, result, out)
-    print(f"rendered {len(files) if files is not None else 'the'} keyframes to {out}")
+    files = render_solution(compiled, result, directory)
+    print(f"rendered {len(files)} keyframes to {directory}")

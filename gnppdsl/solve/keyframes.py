@@ -1,0 +1,89 @@
+"""World poses of the scene's entities at every step of a solution (for `gnpp solve --render`).
+
+Why here: the renderer (`gnppdsl.geometry.render.render_keyframes`) wants, per step, a dict
+entity -> world pose (objects, planar robots) or joint coordinates (URDF robots). World poses
+follow the kinematic chain of each symbolic state, which only the graph-NLP factory knows how
+to expand (`world(o)` along `frame` declarations). We ask the factory to expand `world(o)` at
+step i into a resolved expression over continuous variables and evaluate it with the
+independent numpy interpreter of the nlp layer.
+
+NOTE: the factory has no public "world pose expression" API yet; this uses its internal
+`_world` / `_Ctx` / `_Factor` / `_var_instance` (see the report to the lead).
+"""
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from gnppdsl.compile.factors import FactorInstance
+from gnppdsl.compile.sas import PartialState
+from gnppdsl.ir.expr import CVar, Constraint, Num, Obj
+
+
+def world_states(compiled: Any, states: Sequence[Sequence[int]], values: dict) -> list[dict[str, Any]]:
+    """[{entity: world pose or joint coordinates}] for s_0 .. s_n."""
+    from gnppdsl.compile import factory as fmod
+    from gnppdsl.compile.semantics import derive
+    from gnppdsl.nlp.evaluate import constraint_rows
+
+    factory = compiled.factory
+    problem = compiled.problem
+    scene = problem.scene
+    full = [derive(compiled.task, s) for s in states]
+    by_key_step = {(v.key, v.step): v for v in values}
+    out: list[dict[str, Any]] = []
+    for i in range(len(full)):
+        st: dict[str, Any] = {}
+        for obj in problem.objects:
+            if scene is None or scene.entity(obj) is None:
+                continue
+            frame = problem.domain.frame_of(problem.objects[obj])
+            if obj in scene.robots and scene.robots[obj].kind == "urdf":
+                q = _robot_coords(frame, obj, i, by_key_step, values)
+                if q is not None:
+                    st[obj] = q
+                continue
+            if frame is None:
+                continue                      # fixed at its scene pose
+            try:
+                acc = fmod._Factor()
+                ctx = fmod._Ctx(full, i, where=f"world({obj}) at step {i}")
+                expr = factory._world(obj, ctx, acc, Obj(obj))
+                variables = tuple(factory._var_instance(key, None) for key in acc.slots)
+            except Exception:                 # noqa: BLE001 - a pose we cannot expand is not drawn
+                continue
+            if any(v not in values for v in variables):
+                continue
+            probe = FactorInstance("render.world", "render", (), frozenset(), i, 1, (PartialState(),),
+                                   variables, (Constraint(expr, "==", Num(0.0)),))
+            st[obj] = np.array([h for _, h in constraint_rows(probe, values, compiled.geometry)])
+        out.append(st)
+    return out
+
+
+def _robot_coords(frame: Any, robot: str, step: int, by_key_step: dict, values: dict) -> np.ndarray | None:
+    """The joint coordinates of a URDF robot: the continuous variable its `fk` frame reads."""
+    if frame is None:
+        return None
+    stack = [frame.expr]
+    while stack:
+        e = stack.pop()
+        if isinstance(e, CVar):
+            key = f"{e.name}({robot})"
+            v = by_key_step.get((key, step))
+            if v is not None:
+                return np.asarray(values[v], float).reshape(-1)
+        for name in ("args", "items"):
+            stack.extend(getattr(e, name, ()) or ())
+    return None
+
+
+def render_solution(compiled: Any, result: Any, out_dir: str) -> list[str]:
+    """Render the keyframes s_0 .. s_n of a solved result as PNG files; returns their paths."""
+    from gnppdsl.geometry.render import render_keyframes
+
+    plan = result.extras["plan"]
+    states = world_states(compiled, plan.states, result.extras["values"])
+    titles = [f"s{st.index}" + (f" <- {st.action}" if st.action else " (initial)") for st in result.steps]
+    return render_keyframes(compiled.problem.scene, compiled.geometry, states, out_dir, titles=titles)
