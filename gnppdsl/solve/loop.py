@@ -116,12 +116,11 @@ class Compiled:
 
 def load_and_compile(paths: Sequence[str] | str) -> Compiled:
     """Load a problem (its domain found next to it, or given first), compile task and factory."""
-    from gnppdsl.ir import load_problem
-
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     for p in paths:
         if not Path(p).is_file():
             raise UserError(f"{p}: no such file")
+    from gnppdsl.ir import load_problem
     problem = load_problem(*paths) if len(paths) > 1 else load_problem(paths[0])
     return compile_problem(problem)
 
