@@ -131,6 +131,7 @@ class RobotModel:
     lower: np.ndarray             # planner-coordinate limits (+-inf where unbounded)
     upper: np.ndarray
     links: dict[str, list[LinkGeometry]] = field(default_factory=dict)   # link frame -> shapes
+    fixed_links: frozenset = frozenset()     # links attached to the world (no joint moves them)
     self_pairs: list[tuple[str, str]] = field(default_factory=list)       # link pairs checked for self-collision
     urdf: str = ""
     srdf: str | None = None
@@ -343,7 +344,8 @@ def _parse_base(base) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=64)
-def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_items, base_joint) -> RobotModel:
+def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_items, base_joint,
+                 base_limits=None) -> RobotModel:
     import pinocchio as pin
     pkg = list(package_dirs)
     if model_name:
@@ -399,6 +401,11 @@ def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_it
         except Exception:   # states naming locked joints etc.: home falls back to neutral
             pass
     coords, nc, lower, upper = _coords_of(model)
+    if base_limits is not None and coords and coords[0].kind == "planar":
+        # planar base: x, y limits from the scene (`base_min`, `base_max`); theta stays free
+        (lx, ly), (ux, uy) = base_limits
+        lower[0:2] = (lx, ly)
+        upper[0:2] = (ux, uy)
     links: dict[str, list[LinkGeometry]] = {}
     for go in geom.geometryObjects:
         fr = model.frames[go.parentFrame]
@@ -417,8 +424,10 @@ def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_it
         close = difflib.get_close_matches(ee, [f.name for f in model.frames], n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
         raise UserError(f"robot {name}: end-effector frame '{ee}' not in the model{hint}")
+    fixed = frozenset(ln for ln in links if model.frames[model.getFrameId(ln)].parentJoint == 0)
     return RobotModel(name=name, model=model, geom=geom, base=_parse_base(base), ee=ee, coords=coords, nc=nc,
-                      lower=lower, upper=upper, links=links, self_pairs=sorted(self_pairs), urdf=urdf, srdf=srdf)
+                      lower=lower, upper=upper, links=links, fixed_links=fixed, self_pairs=sorted(self_pairs),
+                      urdf=urdf, srdf=srdf)
 
 
 def load_robot(spec: SceneRobot) -> RobotModel:
@@ -427,9 +436,19 @@ def load_robot(spec: SceneRobot) -> RobotModel:
     `spec.locked` joints are removed with `pin.buildReducedModel`; a Panda without `locked`
     gets its fingers locked open (0.04) so that `joints(r)` is the 7-DOF arm.
     `spec.attributes["base_joint"]` = "planar" adds a planar root joint (mobile base, coordinates
-    x, y, theta first), "free" a floating base.
+    x, y, theta first; `base_min` / `base_max` [x, y] attributes bound it), "free" a floating base.
     """
     if spec.kind != "urdf":
         raise UserError(f"robot {spec.name}: load_robot handles URDF robots, not kind '{spec.kind}'")
+    bl = None
+    if "base_min" in spec.attributes or "base_max" in spec.attributes:
+        try:
+            lo = tuple(float(v) for v in spec.attributes.get("base_min", (-math.inf, -math.inf)))
+            hi = tuple(float(v) for v in spec.attributes.get("base_max", (math.inf, math.inf)))
+        except (TypeError, ValueError):
+            raise UserError(f"robot {spec.name}: base_min / base_max must be [x, y] numbers") from None
+        if len(lo) != 2 or len(hi) != 2:
+            raise UserError(f"robot {spec.name}: base_min / base_max must be [x, y]")
+        bl = (lo, hi)
     return _load_cached(spec.name, spec.model, spec.urdf, spec.srdf, tuple(spec.package_dirs), tuple(spec.base),
-                        spec.ee, tuple(sorted(spec.locked.items())), spec.attributes.get("base_joint"))
+                        spec.ee, tuple(sorted(spec.locked.items())), spec.attributes.get("base_joint"), bl)

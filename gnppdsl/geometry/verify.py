@@ -142,8 +142,10 @@ def placed_bodies(ctx, state: dict[str, Any]) -> list[_Placed]:
         val = state.get(name, scene_value(ctx, name))
         if spec.kind == "urdf":
             q, base = robot_q_base(ctx, name, val)
+            fixed = ctx.robot(name).fixed_links if "base" not in (val if isinstance(val, dict) else {}) else ()
             for ln, T in link_placements(ctx, name, q, base).items():
-                out.append(_Placed(f"{name}/{ln}", name, ctx.body(("link", name, ln)), T))
+                # a link no joint moves (the Panda's link0 on its table) counts as static
+                out.append(_Placed(f"{name}/{ln}", name, ctx.body(("link", name, ln)), T, ln in fixed))
         elif spec.shape is not None and spec.shape.kind != "none":
             out.append(_Placed(name, name, ctx.body(name, planar), entity_matrix(ctx, name, val)))
     return out
@@ -168,7 +170,8 @@ def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterabl
                    self_collision: bool = True) -> list[PairDistance]:
     """Signed distances of every relevant pair, smallest first.
 
-    Relevant: object-object (unless both static), robot link-object, links of different robots,
+    Relevant: object-object (unless both static; a robot link no joint moves counts as static when
+    the robot's base is the scene's), robot link-object, links of different robots,
     and each robot's self-collision pairs (SRDF-filtered); minus the scene's
     `ignore_collisions` and `ignore` (e.g. a held object and its robot, a block and its support).
     """

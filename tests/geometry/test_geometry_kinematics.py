@@ -73,7 +73,12 @@ def test_coordinates_roundtrip_and_limits():
     robot = load_robot(ROBOTS["mobile_panda"][0])
     assert robot.nc == 10 and robot.model.nq == 11       # planar root: 3 coords, 4 pinocchio q
     assert robot.coords[0].kind == "planar"
-    assert np.isinf(robot.lower[2]) and np.isinf(robot.upper[2])
+    assert np.isinf(robot.lower[2]) and np.isinf(robot.upper[2]) and np.isinf(robot.lower[0])
+    bounded = load_robot(SceneRobot("mob2", "urdf", model="panda", ee="panda_hand_tcp",
+                                    attributes={"base_joint": "planar", "base_min": [-2, -1], "base_max": [2, 1.5]}))
+    np.testing.assert_allclose(bounded.lower[:3], [-2, -1, -np.inf])
+    np.testing.assert_allclose(bounded.upper[:3], [2, 1.5, np.inf])
+    assert "panda_link0" not in bounded.fixed_links and "panda_link0" in load_robot(ROBOTS["panda"][0]).fixed_links
     rng = np.random.default_rng(1)
     c = robot.random_coords(rng)
     np.testing.assert_allclose(robot.from_pin_q(robot.to_pin_q(c)), c, atol=1e-12)
