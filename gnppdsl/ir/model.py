@@ -311,6 +311,8 @@ class Template:
 
     `name` is qualified: `MODULE.name` for templates of a module, `DOMAIN.name` for templates
     declared in the domain file. `body` is a tuple of stage-1 statements (ir.expr).
+    `two_step` is True when the body uses `'` (it relates x_i and x_{i+1}); only transition
+    rules may call such a template.
     """
 
     name: str
@@ -318,6 +320,7 @@ class Template:
     body: tuple[Statement, ...]
     tags: frozenset[str] = frozenset()
     module: str = ""
+    two_step: bool = False
     span: Span | None = field(**_SPAN)
 
     @property
@@ -516,7 +519,7 @@ class Module:
     name: str
     path: str
     uses: tuple[str, ...] = ()
-    consts: dict[str, float] = field(default_factory=dict)
+    consts: dict[str, float | tuple[float, ...]] = field(default_factory=dict)
     templates: dict[str, Template] = field(default_factory=dict)       # by qualified name
     scene_attrs: dict[str, SceneAttr] = field(default_factory=dict)
     primitives: dict[str, Primitive] = field(default_factory=dict)
@@ -536,7 +539,7 @@ class Domain:
     path: str
     types: dict[str, Type]
     constants: dict[str, str] = field(default_factory=dict)             # object -> type
-    consts: dict[str, float] = field(default_factory=dict)              # numeric constants
+    consts: dict[str, float | tuple[float, ...]] = field(default_factory=dict)   # `const`s
     state_vars: dict[str, StateVar] = field(default_factory=dict)
     derived: dict[str, Derived] = field(default_factory=dict)
     actions: dict[str, Action] = field(default_factory=dict)

@@ -1,0 +1,537 @@
+"""Load and validate a scene YAML file into `gnppdsl.ir.scene_model.Scene` (schema: docs/scene.md).
+
+Why validate here, by hand, on YAML *nodes*: every mistake must be reported at the file:line:col
+of the offending key or value (nodes carry marks; plain dicts do not), unknown keys get a
+did-you-mean, and all poses are resolved to the world frame once (`parent:` chains), so the
+factory, the geometry layer and the renderer never re-read YAML. Only `yaml` and `math` are
+imported: `gnpp check` stays fast.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from gnppdsl.ir.expr import Span
+from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
+from gnppdsl.lang.diagnostics import Reporter, did_you_mean
+
+TOP_KEYS = ("name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
+ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "ee", "locked", "home",
+              "shape", "color")
+OBJECT_KEYS = ("shape", "size", "pose", "static", "color", "parent", "file", "scale")
+SHAPES = ("box", "cylinder", "sphere", "circle", "mesh")
+
+COLORS: dict[str, tuple[float, float, float, float]] = {
+    "red": (0.85, 0.15, 0.15, 1.0), "green": (0.2, 0.7, 0.25, 1.0), "blue": (0.2, 0.35, 0.85, 1.0),
+    "yellow": (0.95, 0.85, 0.2, 1.0), "orange": (0.95, 0.55, 0.1, 1.0), "purple": (0.55, 0.3, 0.75, 1.0),
+    "cyan": (0.2, 0.8, 0.85, 1.0), "magenta": (0.85, 0.2, 0.75, 1.0), "pink": (0.95, 0.6, 0.7, 1.0),
+    "brown": (0.55, 0.35, 0.2, 1.0), "grey": (0.6, 0.6, 0.6, 1.0), "gray": (0.6, 0.6, 0.6, 1.0),
+    "black": (0.1, 0.1, 0.1, 1.0), "white": (0.95, 0.95, 0.95, 1.0), "wood": (0.7, 0.5, 0.3, 1.0),
+}
+
+IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+class _Bad(Exception):
+    """Raised after a diagnostic has been reported, to skip the rest of an entry."""
+
+
+# ----------------------------------------------------------------------------------------
+# pose math (pure python; quaternions [qx, qy, qz, qw])
+# ----------------------------------------------------------------------------------------
+def quat_from_rpy(r: float, p: float, y: float) -> tuple[float, float, float, float]:
+    """R = Rz(y) Ry(p) Rx(r) (URDF convention)."""
+    cr, sr = math.cos(r / 2), math.sin(r / 2)
+    cp, sp = math.cos(p / 2), math.sin(p / 2)
+    cy, sy = math.cos(y / 2), math.sin(y / 2)
+    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
+
+
+def quat_mul(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def quat_rotate(q, v):
+    x, y, z = quat_mul(quat_mul(q, (v[0], v[1], v[2], 0.0)), (-q[0], -q[1], -q[2], q[3]))[:3]
+    return (x, y, z)
+
+
+def compose(a, b):
+    """SE3 a * b, poses as [x, y, z, qx, qy, qz, qw]."""
+    t = quat_rotate(a[3:], b[:3])
+    q = quat_mul(a[3:], b[3:])
+    n = math.sqrt(sum(c * c for c in q)) or 1.0
+    return (a[0] + t[0], a[1] + t[1], a[2] + t[2]) + tuple(c / n for c in q)
+
+
+def se2_to_se3(p) -> tuple[float, ...]:
+    x, y, th = p
+    return (x, y, 0.0, 0.0, 0.0, math.sin(th / 2), math.cos(th / 2))
+
+
+def compose_se2(a, b):
+    c, s = math.cos(a[2]), math.sin(a[2])
+    th = a[2] + b[2]
+    th = math.atan2(math.sin(th), math.cos(th))
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], th)
+
+
+# ----------------------------------------------------------------------------------------
+# the loader
+# ----------------------------------------------------------------------------------------
+class _Loader:
+    def __init__(self, path: str, reporter: Reporter) -> None:
+        self.path = path
+        self.dir = Path(path).parent
+        self.r = reporter
+        self.ok = True
+
+    # ---- diagnostics
+    def span(self, node) -> Span:
+        s, e = node.start_mark, node.end_mark
+        return Span(self.path, s.line + 1, s.column + 1, e.line + 1 if e else None,
+                    e.column + 1 if e else None)
+
+    def error(self, node, msg: str, kind: str = "scene", hint: str | None = None) -> None:
+        self.ok = False
+        self.r.error(self.span(node) if node is not None else Span(self.path, 1, 1), msg, kind, hint)
+
+    def fail(self, node, msg: str, kind: str = "scene", hint: str | None = None):
+        self.error(node, msg, kind, hint)
+        raise _Bad
+
+    # ---- node helpers
+    def mapping(self, node, what: str) -> dict[str, tuple[Any, Any]]:
+        """{key: (key_node, value_node)}; duplicate keys are errors."""
+        import yaml
+
+        if not isinstance(node, yaml.MappingNode):
+            self.fail(node, f"{what} must be a mapping (`key: value` lines or {{...}})")
+        out: dict[str, tuple[Any, Any]] = {}
+        for k, v in node.value:
+            if not isinstance(k, yaml.ScalarNode):
+                self.error(k, "keys must be plain names")
+                continue
+            if k.value in out:
+                self.error(k, f"'{k.value}' appears twice in {what}", "duplicate")
+                continue
+            out[k.value] = (k, v)
+        return out
+
+    def scalar(self, node):
+        import yaml
+
+        if not isinstance(node, yaml.ScalarNode):
+            return None
+        from yaml.constructor import SafeConstructor
+
+        try:
+            return SafeConstructor().construct_object(node)
+        except Exception:  # noqa: BLE001 - malformed scalar (bad timestamp etc.)
+            return node.value
+
+    def number(self, node, what: str) -> float:
+        v = self.scalar(node)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+            self.fail(node, f"{what} must be a number")
+        return float(v)
+
+    def numbers(self, node, what: str, n: int | tuple[int, ...] | None = None) -> tuple[float, ...]:
+        import yaml
+
+        if not isinstance(node, yaml.SequenceNode):
+            self.fail(node, f"{what} must be a list of numbers" + (f" ({n} of them)" if isinstance(n, int) else ""))
+        vals = tuple(self.number(x, f"each item of {what}") for x in node.value)
+        ns = (n,) if isinstance(n, int) else n
+        if ns is not None and len(vals) not in ns:
+            self.fail(node, f"{what} must have {' or '.join(map(str, ns))} numbers, got {len(vals)}")
+        return vals
+
+    def string(self, node, what: str) -> str:
+        v = self.scalar(node)
+        if not isinstance(v, str) or not v:
+            self.fail(node, f"{what} must be a name or a path")
+        return v
+
+    def boolean(self, node, what: str) -> bool:
+        v = self.scalar(node)
+        if not isinstance(v, bool):
+            self.fail(node, f"{what} must be true or false")
+        return v
+
+    def file(self, node, what: str) -> str:
+        rel = self.string(node, what)
+        p = (self.dir / rel).resolve()
+        if not p.exists():
+            self.fail(node, f"{what} not found: {rel}", "missing-file", f"paths are relative to {self.dir}")
+        return str(p)
+
+    def unknown_key(self, key_node, key: str, known: tuple[str, ...], what: str) -> None:
+        self.error(key_node, f"unknown key '{key}' in {what}", "unknown-key",
+                   did_you_mean(key, known) or "keys: " + ", ".join(known))
+
+    def extra(self, key_node, key: str, val_node, known: tuple[str, ...], what: str) -> Any:
+        """An extra attribute: numbers or lists of numbers; anything else (or a near-miss of a
+        known key) is an unknown key."""
+        import yaml
+
+        if did_you_mean(key, known) is not None:
+            self.unknown_key(key_node, key, known, what)
+            return None
+        if isinstance(val_node, yaml.SequenceNode):
+            try:
+                return self.numbers(val_node, f"attribute '{key}'")
+            except _Bad:
+                return None
+        v = self.scalar(val_node)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return float(v)
+        self.unknown_key(key_node, key, known, what)
+        return None
+
+    # ---- values
+    def color(self, node) -> tuple[float, float, float, float]:
+        import yaml
+
+        if isinstance(node, yaml.SequenceNode):
+            c = self.numbers(node, "a color", (3, 4))
+            if any(not 0 <= x <= 1 for x in c):
+                self.fail(node, "color components are between 0 and 1")
+            return tuple(c) + ((1.0,) if len(c) == 3 else ())
+        name = self.scalar(node)
+        if not isinstance(name, str) or name not in COLORS:
+            self.fail(node, f"unknown color '{name}'", "scene",
+                      did_you_mean(str(name), COLORS) or "use a name (" + ", ".join(sorted(COLORS))
+                      + ") or [r, g, b, a] in 0..1")
+        return COLORS[name]
+
+    def pose(self, node, dim: int) -> tuple[float, ...]:
+        """SE3 pose (3-D) or SE2 pose [x, y, theta] (planar)."""
+        import yaml
+
+        if isinstance(node, yaml.SequenceNode):
+            if dim == 2:
+                return self.numbers(node, "a planar pose [x, y, theta]", 3)
+            v = self.numbers(node, "a pose ([x, y, z] or [x, y, z, qx, qy, qz, qw])", (3, 7))
+            if len(v) == 3:
+                return v + (0.0, 0.0, 0.0, 1.0)
+            return v[:3] + self.unit_quat(node, v[3:])
+        m = self.mapping(node, "a pose")
+        if dim == 2:
+            self.fail(node, "a planar pose is a list [x, y, theta]")
+        for k, (kn, _) in m.items():
+            if k not in ("xyz", "rpy", "quat"):
+                self.unknown_key(kn, k, ("xyz", "rpy", "quat"), "a pose")
+        xyz = self.numbers(m["xyz"][1], "xyz", 3) if "xyz" in m else (0.0, 0.0, 0.0)
+        if "rpy" in m and "quat" in m:
+            self.fail(m["quat"][0], "give either rpy or quat, not both")
+        if "rpy" in m:
+            q = quat_from_rpy(*self.numbers(m["rpy"][1], "rpy", 3))
+        elif "quat" in m:
+            q = self.unit_quat(m["quat"][1], self.numbers(m["quat"][1], "quat [qx, qy, qz, qw]", 4))
+        else:
+            q = (0.0, 0.0, 0.0, 1.0)
+        return tuple(xyz) + tuple(q)
+
+    def unit_quat(self, node, q) -> tuple[float, ...]:
+        n = math.sqrt(sum(c * c for c in q))
+        if n < 1e-9:
+            self.fail(node, "a quaternion must not be zero")
+        return tuple(c / n for c in q)
+
+    def shape(self, node, fields: dict, dim: int) -> SceneShape:
+        """`shape: box` + `size`, `shape: {circle: r}`, `shape: mesh` + `file`, ..."""
+        import yaml
+
+        if isinstance(node, yaml.MappingNode):
+            m = self.mapping(node, "a shape")
+            if len(m) != 1:
+                self.fail(node, "a shape mapping has one entry, e.g. {circle: 0.05} or {box: [sx, sy, sz]}")
+            (kind, (kn, vn)), = m.items()
+            if kind not in SHAPES or kind == "mesh":
+                self.fail(kn, f"unknown shape '{kind}'", "scene",
+                          did_you_mean(kind, SHAPES) or "shapes: box, cylinder, sphere, circle, mesh")
+            return self._shape(kind, vn, vn, dim)
+        kind = self.scalar(node)
+        if kind not in SHAPES:
+            self.fail(node, f"unknown shape '{kind}'", "scene",
+                      did_you_mean(str(kind), SHAPES) or "shapes: " + ", ".join(SHAPES))
+        if kind == "mesh":
+            if "file" not in fields:
+                self.fail(node, "a mesh needs `file: path/to/mesh.stl`")
+            f = self.file(fields["file"][1], "mesh file")
+            scale = self.numbers(fields["scale"][1], "scale", 3) if "scale" in fields else (1.0, 1.0, 1.0)
+            return SceneShape("mesh", scale, f)
+        size = fields.get("size") or fields.get("radius")
+        if size is None:
+            self.fail(node, f"a {kind} needs `size:`" + (" (or `radius:`)" if kind in ("sphere", "circle") else ""))
+        return self._shape(kind, size[1], size[1], dim)
+
+    def _shape(self, kind: str, vnode, where, dim: int) -> SceneShape:
+        import yaml
+
+        if kind in ("sphere", "circle"):
+            if isinstance(vnode, yaml.SequenceNode):
+                (r,) = self.numbers(vnode, f"{kind} size [radius]", 1)
+            else:
+                r = self.number(vnode, f"{kind} radius")
+            size: tuple[float, ...] = (r,)
+        elif kind == "box":
+            size = self.numbers(vnode, "box size [sx, sy, sz]", (2, 3) if dim == 2 else 3)
+            if len(size) == 2:
+                size = size + (0.1,)
+        else:
+            size = self.numbers(vnode, "cylinder size [radius, length]", 2)
+        if any(s <= 0 for s in size):
+            self.fail(where, "shape sizes must be positive")
+        return SceneShape(kind, tuple(size))
+
+    # ---- entries
+    def robot(self, name: str, knode, node, dim: int) -> SceneRobot | None:
+        m = self.mapping(node, f"robot '{name}'")
+        attrs = {}
+        for k, (kn, vn) in m.items():
+            if k not in ROBOT_KEYS:
+                v = self.extra(kn, k, vn, ROBOT_KEYS, f"robot '{name}'")
+                if v is not None:
+                    attrs[k] = v
+        kind = "urdf"
+        if "kind" in m:
+            kind = self.string(m["kind"][1], "kind")
+            if kind not in ("planar", "urdf"):
+                self.fail(m["kind"][1], f"unknown robot kind '{kind}'", "scene",
+                          did_you_mean(kind, ("planar", "urdf")) or "kinds: planar, urdf")
+        src = str(self.span(knode))
+        color = self.color(m["color"][1]) if "color" in m else (0.9, 0.9, 0.9, 1.0)
+        if kind == "planar":
+            for k in ("model", "urdf", "srdf", "package_dirs", "locked", "ee", "base"):
+                if k in m:
+                    self.error(m[k][0], f"'{k}' does not apply to a planar robot", "scene")
+            home = self.numbers(m["home"][1], "home [x, y, theta]", 3) if "home" in m else (0.0, 0.0, 0.0)
+            shape = self.shape(m["shape"][1], m, 2) if "shape" in m else None
+            return SceneRobot(name, "planar", home=home, shape=shape, color=color, attributes=attrs,
+                              source=src)
+        if ("model" in m) == ("urdf" in m):
+            self.fail(knode, f"robot '{name}' needs exactly one of `model:` (example-robot-data name) "
+                      "or `urdf:` (a file)")
+        model = self.string(m["model"][1], "model") if "model" in m else None
+        urdf = self.file(m["urdf"][1], "URDF file") if "urdf" in m else None
+        srdf = self.file(m["srdf"][1], "SRDF file") if "srdf" in m else None
+        pdirs = ()
+        if "package_dirs" in m:
+            import yaml
+
+            pn = m["package_dirs"][1]
+            if not isinstance(pn, yaml.SequenceNode):
+                self.fail(pn, "package_dirs must be a list of directories")
+            pdirs = tuple(self.file(x, "package directory") for x in pn.value)
+        base = self.pose(m["base"][1], 3) if "base" in m else IDENTITY
+        ee = self.string(m["ee"][1], "ee") if "ee" in m else None
+        locked = {}
+        if "locked" in m:
+            for k, (kn, vn) in self.mapping(m["locked"][1], "locked").items():
+                locked[k] = self.number(vn, f"locked joint '{k}'")
+        home = self.numbers(m["home"][1], "home") if "home" in m else ()
+        shape = self.shape(m["shape"][1], m, 3) if "shape" in m else None
+        return SceneRobot(name, "urdf", model=model, urdf=urdf, srdf=srdf, package_dirs=pdirs, base=base,
+                          ee=ee, locked=locked, home=home, shape=shape, color=color, attributes=attrs,
+                          source=src)
+
+    def obj(self, name: str, knode, node, dim: int) -> dict:
+        m = self.mapping(node, f"object '{name}'")
+        attrs = {}
+        for k, (kn, vn) in m.items():
+            if k not in OBJECT_KEYS:
+                v = self.extra(kn, k, vn, OBJECT_KEYS, f"object '{name}'")
+                if v is not None:
+                    attrs[k] = v
+        if "file" in m and not ("shape" in m and self.scalar(m["shape"][1]) == "mesh"):
+            self.error(m["file"][0], "`file:` is only used with `shape: mesh`")
+        shape = self.shape(m["shape"][1], m, dim) if "shape" in m else SceneShape("none")
+        if "size" in m and shape.kind in ("none", "mesh"):
+            self.error(m["size"][0], "`size:` needs a `shape:` (box, cylinder, sphere, circle)")
+        if "radius" in m and "radius" not in attrs:
+            attrs["radius"] = self.number(m["radius"][1], "radius")
+        pose = self.pose(m["pose"][1], dim) if "pose" in m else ((0.0, 0.0, 0.0) if dim == 2 else IDENTITY)
+        parent = None
+        if "parent" in m:
+            parent = (self.string(m["parent"][1], "parent"), m["parent"][1])
+        return dict(name=name, shape=shape, rel=pose, parent=parent,
+                    color=self.color(m["color"][1]) if "color" in m else (0.6, 0.6, 0.6, 1.0),
+                    static=self.boolean(m["static"][1], "static") if "static" in m else False,
+                    attributes=attrs, source=str(self.span(knode)))
+
+    # ---- the file
+    def load(self, text: str) -> Scene | None:
+        import yaml
+
+        try:
+            root = yaml.compose(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            span = Span(self.path, mark.line + 1, mark.column + 1) if mark else Span(self.path, 1, 1)
+            self.r.error(span, f"invalid YAML: {exc.problem or exc.context}", "yaml")
+            return None
+        except yaml.YAMLError as exc:
+            self.r.error(Span(self.path, 1, 1), f"invalid YAML: {exc}", "yaml")
+            return None
+        if root is None:
+            self.r.error(Span(self.path, 1, 1), "the scene file is empty", "scene")
+            return None
+        try:
+            top = self.mapping(root, "the scene")
+        except _Bad:
+            return None
+        for k, (kn, _) in top.items():
+            if k not in TOP_KEYS:
+                self.unknown_key(kn, k, TOP_KEYS, "the scene")
+        name = Path(self.path).stem
+        dim = 3
+        workspace = None
+        try:
+            if "name" in top:
+                name = str(self.scalar(top["name"][1]))
+            if "dimension" in top:
+                d = self.scalar(top["dimension"][1])
+                if d not in (2, 3) or isinstance(d, bool):
+                    self.fail(top["dimension"][1], "dimension is 2 (planar) or 3")
+                dim = d
+        except _Bad:
+            pass
+        if "workspace" in top:
+            try:
+                import yaml
+
+                wn = top["workspace"][1]
+                if not isinstance(wn, yaml.SequenceNode) or len(wn.value) != 2:
+                    self.fail(wn, "workspace is [[lower...], [upper...]]")
+                lo = self.numbers(wn.value[0], "workspace lower bound", dim)
+                hi = self.numbers(wn.value[1], "workspace upper bound", dim)
+                if any(a > b for a, b in zip(lo, hi)):
+                    self.fail(wn, "workspace lower bounds must not exceed the upper bounds")
+                workspace = (lo, hi)
+            except _Bad:
+                pass
+        robots: dict[str, SceneRobot] = {}
+        if "robots" in top:
+            try:
+                for rname, (kn, vn) in self.mapping(top["robots"][1], "robots").items():
+                    try:
+                        rb = self.robot(rname, kn, vn, dim)
+                        if rb is not None:
+                            robots[rname] = rb
+                    except _Bad:
+                        pass
+            except _Bad:
+                pass
+        raw: dict[str, dict] = {}
+        if "objects" in top:
+            try:
+                for oname, (kn, vn) in self.mapping(top["objects"][1], "objects").items():
+                    if oname in robots:
+                        self.error(kn, f"'{oname}' is already a robot", "duplicate")
+                        continue
+                    try:
+                        raw[oname] = self.obj(oname, kn, vn, dim)
+                    except _Bad:
+                        pass
+            except _Bad:
+                pass
+        objects = self.resolve_poses(raw, robots, dim)
+        ignore: set[frozenset[str]] = set()
+        if "ignore_collisions" in top:
+            import yaml
+
+            node = top["ignore_collisions"][1]
+            try:
+                if not isinstance(node, yaml.SequenceNode):
+                    self.fail(node, "ignore_collisions is a list of pairs [a, b]")
+                for pair in node.value:
+                    if not isinstance(pair, yaml.SequenceNode) or len(pair.value) != 2:
+                        self.error(pair, "each entry of ignore_collisions is a pair [a, b]")
+                        continue
+                    names = []
+                    for x in pair.value:
+                        n = self.scalar(x)
+                        if n not in robots and n not in raw:
+                            self.error(x, f"unknown robot or object '{n}'", "unknown-name",
+                                       did_you_mean(str(n), list(robots) + list(raw)))
+                        names.append(str(n))
+                    ignore.add(frozenset(names))
+            except _Bad:
+                pass
+        if not self.ok:
+            return None
+        return Scene(name, dim, robots, objects, frozenset(ignore), workspace, self.path)
+
+    def resolve_poses(self, raw: dict[str, dict], robots: dict, dim: int) -> dict[str, SceneObject]:
+        """World poses: compose along `parent:` chains (planar: SE2, then lifted to SE3)."""
+        world: dict[str, tuple[float, ...]] = {}
+        out: dict[str, SceneObject] = {}
+
+        def get(name: str, chain: list[str]):
+            if name in world:
+                return world[name]
+            entry = raw[name]
+            rel = entry["rel"]
+            if entry["parent"] is None:
+                w = rel
+            else:
+                pname, pnode = entry["parent"]
+                if pname in chain:
+                    self.fail(pnode, f"parent chain of '{name}' is a cycle: {' -> '.join(chain + [pname])}",
+                              "cycle")
+                if pname in raw:
+                    pw = get(pname, chain + [pname])
+                elif pname in robots:
+                    rb = robots[pname]
+                    pw = rb.home if dim == 2 and rb.kind == "planar" else rb.base
+                    if dim == 2 and len(pw) != 3:
+                        pw = (0.0, 0.0, 0.0)
+                else:
+                    self.fail(pnode, f"unknown parent '{pname}'", "unknown-name",
+                              did_you_mean(pname, list(raw) + list(robots)))
+                w = compose_se2(pw, rel) if dim == 2 else compose(pw, rel)
+            world[name] = w
+            return w
+
+        for name, entry in raw.items():
+            try:
+                w = get(name, [name])
+            except _Bad:
+                continue
+            pose = se2_to_se3(w) if dim == 2 else tuple(w)
+            out[name] = SceneObject(name, entry["shape"], tuple(pose), tuple(w) if dim == 2 else None,
+                                    entry["parent"][0] if entry["parent"] else None, entry["color"],
+                                    entry["static"], entry["attributes"], entry["source"])
+        return out
+
+
+def load_scene(path: str | Path, reporter: Reporter, ref: Span | None = None) -> Scene | None:
+    """Load a scene; problems go to `reporter` (a missing file is reported at `ref`, the
+    problem's `scene "..."` line). Returns None if anything is wrong."""
+    p = str(path)
+    try:
+        text = Path(p).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        reporter.error(ref, f"scene file not found: {p}", "missing-file")
+        return None
+    except (OSError, UnicodeDecodeError) as exc:
+        reporter.error(ref, f"cannot read scene file {p}: {exc}", "unreadable-file")
+        return None
+    reporter.sources.add(p, text)
+    return _Loader(p, reporter).load(text)
+
+
+def load_scene_file(path: str | Path) -> Scene:
+    """Load a scene or raise `DiagnosticError` (for callers outside a check run)."""
+    r = Reporter()
+    scene = load_scene(path, r)
+    r.raise_if_errors()
+    assert scene is not None
+    return scene
