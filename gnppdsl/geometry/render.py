@@ -68,7 +68,7 @@ class _View:
         return np.c_[x, y]
 
 
-def _draw_view(img, x0, view: _View, polys: list[_Poly], font):
+def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozenset = frozenset()):
     from PIL import ImageDraw
     layer = img.crop((x0, 0, x0 + view.size, view.size + 20))
     draw = ImageDraw.Draw(layer, "RGBA")
@@ -82,6 +82,12 @@ def _draw_view(img, x0, view: _View, polys: list[_Poly], font):
         fill = p.color[:3] + (min(p.color[3], 230),)
         outline = tuple(int(c * 0.5) for c in p.color[:3]) + (255,)
         draw.polygon(hull, fill=fill, outline=outline)
+    # movable objects hidden under an arm stay visible: their outlines again, on top
+    for p in order:
+        if p.label and p.name in movable:
+            hull = _hull_poly(view.px(p.verts))
+            if len(hull) >= 3:
+                draw.polygon(hull, outline=p.color[:3] + (255,))
     # world axes at the origin (10 cm): red = horizontal image axis, green = vertical
     o = view.px(np.zeros((1, 3)))[0]
     for axis, col in ((view.u, (220, 0, 0, 255)), (view.v, (0, 160, 0, 255))):
@@ -121,11 +127,12 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
     if scene.dimension == 3:
         views.append(_View("front (x right, z up)", 0, 2, 1, lo, hi, size))
     font = ImageFont.load_default()
+    movable = frozenset(n for n, o in scene.objects.items() if not o.static)
     paths = []
     for i, polys in enumerate(all_polys):
         img = Image.new("RGBA", (size * len(views), size + 20), (255, 255, 255, 255))
         for k, v in enumerate(views):
-            _draw_view(img, k * size, v, front_polys_for_depth(polys) if v.v == 2 else polys, font)
+            _draw_view(img, k * size, v, front_polys_for_depth(polys) if v.v == 2 else polys, font, movable)
         d = ImageDraw.Draw(img)
         title = titles[i] if titles and i < len(titles) else f"{scene.name}: keyframe {i}"
         d.text((6, size + 4), title, fill=(0, 0, 0), font=font)
