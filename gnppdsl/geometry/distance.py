@@ -93,8 +93,20 @@ class WitnessCallback(ca.Callback):
     def get_sparsity_out(self, i):
         return ca.Sparsity.dense(9, 1)
 
+    # Buffer evaluation: casadi hands over raw memory, skipping DM conversions (about 2x faster).
+    def has_eval_buffer(self):
+        return True
+
+    def eval_buffer(self, arg, res):
+        x = np.frombuffer(arg[0], dtype=np.float64, count=24)
+        out = np.frombuffer(res[0], dtype=np.float64, count=9)
+        out[:] = self._witness_vector(x)
+        return 0
+
     def eval(self, arg):
-        x = np.array(arg[0], dtype=float).ravel()
+        return [ca.DM(self._witness_vector(np.array(arg[0], dtype=float).ravel()))]
+
+    def _witness_vector(self, x: np.ndarray) -> np.ndarray:
         RA = x[0:9].reshape(3, 3, order="F")
         pA = x[9:12]
         RB = x[12:21].reshape(3, 3, order="F")
@@ -109,7 +121,7 @@ class WitnessCallback(ca.Callback):
             wa = wb = (pA + pB) / 2
         else:
             n = n / nn
-        return [ca.DM(np.r_[n, RA.T @ (wa - pA), RB.T @ (wb - pB)])]
+        return np.r_[n, RA.T @ (wa - pA), RB.T @ (wb - pB)]
 
     def has_jacobian(self):
         return True
