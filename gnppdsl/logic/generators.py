@@ -84,6 +84,44 @@ def reverse_tower_task(n: int) -> SASTask:
     return blocks_world([blocks], [blocks[::-1]], name=f"reverse{n}")
 
 
+def grid_task(width: int, height: int, objects: int, rng: random.Random | None = None,
+              name: str = "grid") -> SASTask:
+    """A robot on a width x height grid carries objects to target cells (one at a time).
+
+    Variables: at(robot) in cells; at(o) in cells + {robot}; derived occupied(c) := exists o .
+    at(o) = c (dropping needs not occupied(c)). Conflicts on it have detours, unlike towers.
+    Objects start and end on random distinct cells (fixed ones without `rng`).
+    """
+    rng = rng or random.Random(0)
+    cells = [f"c{x}{y}" for y in range(height) for x in range(width)]
+    variables = [SASVariable("at(robot)", tuple(cells))]
+    variables += [SASVariable(f"at(o{i})", (*cells, "robot")) for i in range(objects)]
+    variables.append(SASVariable("carrying", ("none", *[f"o{i}" for i in range(objects)])))
+    carry = 1 + objects
+    occ = carry + 1
+    variables += [SASVariable(f"occupied({c})", BOOL, axiom_layer=0) for c in cells]
+    ops: list[Operator] = []
+    for j, c in enumerate(cells):
+        x, y = j % width, j // width
+        for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            if 0 <= x + dx < width and 0 <= y + dy < height:
+                k = (y + dy) * width + x + dx
+                ops.append(Operator(f"move({c}, {cells[k]})", ((0, j),), (Effect(0, k),)))
+    robot = len(cells)
+    for i in range(objects):
+        for j, c in enumerate(cells):
+            ops.append(Operator(f"pick(o{i}, {c})", ((0, j), (1 + i, j), (carry, 0)),
+                                (Effect(1 + i, robot), Effect(carry, 1 + i))))
+            ops.append(Operator(f"drop(o{i}, {c})", ((0, j), (carry, 1 + i), (occ + j, 0)),
+                                (Effect(1 + i, j), Effect(carry, 0))))
+    axioms = [Axiom(((1 + i, j),), occ + j) for i in range(objects) for j in range(len(cells))]
+    start = rng.sample(range(len(cells)), objects + 1)
+    target = rng.sample(range(len(cells)), objects)
+    initial = [start[0], *start[1:], 0] + [0] * len(cells)
+    goal = PartialState(tuple((1 + i, target[i]) for i in range(objects)))
+    return SASTask(variables, tuple(initial), goal, ops, axioms, name=name)
+
+
 def random_task(rng: random.Random, n_vars: int = 4, n_ops: int = 8, max_dom: int = 3,
                 conditional: float = 0.3, derived: bool = True) -> SASTask:
     """A small random task: preconditions/effects on state and derived variables, conditional
@@ -153,18 +191,27 @@ def random_walk(task: SASTask, rng: random.Random, length: int) -> list[tuple[in
 
 
 def random_conflicts(task: SASTask, rng: random.Random, count: int, max_len: int = 3,
-                     max_facts: int = 2, walk_length: int = 8) -> list[tuple[PartialState, ...]]:
-    """Conflicts <p_0 .. p_L> made of fact subsets of consecutive states on random walks."""
+                     max_facts: int = 3, walk_length: int = 8) -> list[tuple[PartialState, ...]]:
+    """Conflicts <p_0 .. p_L> made of facts of consecutive states s_i .. s_{i+L} on random walks.
+
+    Like the conflicts of the Graph-NLP Planner they mostly describe a *change*: the facts are
+    drawn from the variables whose value changes inside the window (from s_{i-1} for L = 0),
+    and s_0 is avoided when the walk allows (a conflict holding in s_0 kills every plan).
+    """
     out = []
+    nvars = len(task.variables)
     for _ in range(count):
         states = random_walk(task, rng, walk_length)
         L = rng.randint(0, min(max_len, len(states)) - 1)
-        i = rng.randint(0, len(states) - 1 - L)
+        first = 1 if len(states) > L + 1 else 0
+        i = rng.randint(first, len(states) - 1 - L)
+        lo = max(0, i - 1) if L == 0 else i
+        window = states[lo:i + L + 1]
+        pool = [v for v in range(nvars) if len({s[v] for s in window}) > 1] or list(range(nvars))
         seq = []
         for l in range(L + 1):
-            s = states[i + l]
-            k = rng.randint(1, max_facts)
-            vars_ = rng.sample(range(len(task.variables)), min(k, len(task.variables)))
-            seq.append(PartialState(tuple((v, s[v]) for v in vars_)))
+            st = states[i + l]
+            vars_ = rng.sample(pool, min(rng.randint(1, max_facts), len(pool)))
+            seq.append(PartialState(tuple((v, st[v]) for v in vars_)))
         out.append(tuple(seq))
     return out
