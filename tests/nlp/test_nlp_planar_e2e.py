@@ -55,9 +55,10 @@ def test_p3_short_plan_conflict_is_real_and_small(p3):
     assert not res.feasible
     assert res.subgraph.n_factors < g.n_factors
     assert confirmed_infeasible(res.subgraph, p3.geometry)
-    # b2 occupies the target: the conflict involves both blocks
-    objs = {a for v in res.subgraph.variables for a in v.args}
-    assert {"b1", "b2"} <= objs or any("b2" in f.label for f in res.subgraph.factor_instances)
+    # b2 rests on s2 in the middle of the target, which fits one block: b1 placed there
+    # overlaps it. Exactly these three factors at the last step, nothing about the gripper.
+    assert sorted((f.rule, f.step) for f in res.subgraph.factor_instances) == \
+        [("apart", 2), ("on_spot", 2), ("placed", 2)]
 
 
 def test_p3_long_plan_feasible_and_rechecked(p3):
@@ -78,3 +79,5 @@ def test_t2_unreachable_conflict_is_real():
     res = find_infeasible_subgraph(g, c.relaxations, "trn", solver=FeasibilitySolver(c.geometry))
     print(f"t2: conflict under {res.relaxation}:\n{res.subgraph.describe()}")
     assert not res.feasible and confirmed_infeasible(res.subgraph, c.geometry)
+    rules = {f.rule for f in res.subgraph.factor_instances}
+    assert {"reach", "placed"} <= rules and "apart" not in rules
