@@ -56,7 +56,7 @@ def test_every_mistake_is_reported_with_file_line_column(tmp_path):
     assert "did you mean 'table'?" in msg
     assert "bad.txt:1:19: error: unknown variable 'on(b9)'" in msg
     assert "bad.txt:2:18: error: expected '>'" in msg
-    assert "bad.txt:3:16:" in msg and "bad.txt:3:20: error: 'holding' is not boolean" in msg
+    assert "bad.txt:3:17:" in msg and "bad.txt:3:20: error: 'holding' is not boolean" in msg
     assert "bad.txt:4:19: error: on(b1) gets two values" in msg
     assert "5 errors" not in msg and "6 errors" in msg
     with pytest.raises(UserError, match="cannot read conflict file"):
