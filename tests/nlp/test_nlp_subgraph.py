@@ -113,7 +113,8 @@ def test_convergence_heuristic_drops_unrelated_factors():
     assert templates(m) == [("toy.left", 0), ("toy.right", 0)] and m.variables == [b0]
     assert confirm_infeasible(m)
     assert templates(find_infeasible_subgraph(g, [], "tn").subgraph) == templates(m)
-    assert find_infeasible_subgraph(g, [], "t").subgraph.n_factors == g.n_factors
+    whole = find_infeasible_subgraph(g, [], "t").subgraph
+    assert whole.n_factors == g.n_factors and confirm_infeasible(whole)
 
 
 def test_convergence_heuristic_keeps_graph_when_violated_part_is_feasible():
@@ -155,6 +156,7 @@ def test_injected_check_with_bools_counts_and_heuristic_solves():
     assert len(seen) == len(set(seen)) == res.stats.checks     # memo: no subgraph twice
     assert res.stats.solves == 0 and res.stats.heuristic_solves == 1
     assert templates(res.subgraph) == [("toy.left", 3), ("toy.move", 3), ("toy.right", 4)]
+    assert confirm_infeasible(res.subgraph)
 
 
 def test_switches_validated():
