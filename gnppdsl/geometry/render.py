@@ -68,7 +68,8 @@ class _View:
         return np.c_[x, y]
 
 
-def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozenset = frozenset()):
+def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozenset = frozenset(),
+               statics: frozenset = frozenset()):
     from PIL import ImageDraw
     layer = img.crop((x0, 0, x0 + view.size, view.size + 20))
     draw = ImageDraw.Draw(layer, "RGBA")
@@ -95,13 +96,18 @@ def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozense
         e[0, axis] = 0.1
         draw.line([tuple(o), tuple(view.px(e)[0])], fill=col, width=2)
     for p in order:
-        if p.label:
-            c = view.px(p.verts).mean(axis=0)
+        if not p.label:
+            continue
+        px = view.px(p.verts)
+        if p.name in movable or "/" in p.name or p.name not in statics:
+            c = px.mean(axis=0)           # movable objects and robots: centred, black
             draw.text((c[0] - 3 * len(p.label), c[1] - 5), p.label, fill=(0, 0, 0, 255), font=font)
+        else:                             # static furniture: small grey tag at its top-left corner
+            draw.text((px[:, 0].min() + 2, px[:, 1].min() + 1), p.label, fill=(70, 70, 70, 255), font=font)
     img.paste(layer, (x0, 0))
 
 
-def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, size: int = 480,
+def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, size: int = 560,
                      prefix: str = "keyframe", titles: list[str] | None = None) -> list[str]:
     """Write one PNG per state (`{prefix}_{i:03d}.png`) into `out_dir`; return their paths.
 
@@ -117,10 +123,8 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
         raise UserError(f"cannot create render directory {out_dir}: {e}") from None
     all_polys = [_polys(ctx, s) for s in states]
     pts = np.vstack([p.verts for ps in all_polys for p in ps]) if any(all_polys) else np.zeros((1, 3))
+    # frame what is there in any keyframe (the scene workspace is often much larger)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    if scene.workspace is not None:
-        wl, wh = np.resize(np.asarray(scene.workspace[0], float), 3), np.resize(np.asarray(scene.workspace[1], float), 3)
-        lo, hi = np.minimum(lo, wl), np.maximum(hi, wh)
     pad = 0.05 * max(hi - lo)
     lo, hi = lo - pad, hi + pad
     views = [_View("top (x right, y up)", 0, 1, 2, lo, hi, size)]
@@ -128,11 +132,12 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
         views.append(_View("front (x right, z up)", 0, 2, 1, lo, hi, size))
     font = ImageFont.load_default()
     movable = frozenset(n for n, o in scene.objects.items() if not o.static)
+    statics = frozenset(n for n, o in scene.objects.items() if o.static)
     paths = []
     for i, polys in enumerate(all_polys):
         img = Image.new("RGBA", (size * len(views), size + 20), (255, 255, 255, 255))
         for k, v in enumerate(views):
-            _draw_view(img, k * size, v, front_polys_for_depth(polys) if v.v == 2 else polys, font, movable)
+            _draw_view(img, k * size, v, front_polys_for_depth(polys) if v.v == 2 else polys, font, movable, statics)
         d = ImageDraw.Draw(img)
         title = titles[i] if titles and i < len(titles) else f"{scene.name}: keyframe {i}"
         d.text((6, size + 4), title, fill=(0, 0, 0), font=font)
