@@ -810,7 +810,7 @@ class DomainResolver:
         if report:
             if not qs:
                 self.err(c.qname[0].span, f"unknown template '{short}'", "unknown-template",
-                         did_you_mean(short, list(self.template_index) + list(self.template_asts)))
+                         did_you_mean(short, list(self.template_index)))
             else:
                 self.err(c.qname[0].span, f"template '{short}' is ambiguous", "ambiguous",
                          "write one of " + ", ".join(sorted(qs)))
@@ -1554,9 +1554,17 @@ class ProblemResolver:
                     self.err(d.span, "the problem names a second scene", "duplicate")
                     continue
                 scene_path = str((Path(f.path).parent / d.path))
-                from gnppdsl.ir.scene import load_scene
+                from gnppdsl.ir.scene import OBJECT_KEYS, ROBOT_KEYS, load_scene_with_spans
 
-                scene = load_scene(scene_path, self.r, d.span)
+                scene, spans = load_scene_with_spans(scene_path, self.r, d.span)
+                declared = set(dom.scene_attrs)
+                for (entity, key), kspan in spans.items():
+                    if key in declared:
+                        continue
+                    known = sorted(declared | set(OBJECT_KEYS) | set(ROBOT_KEYS))
+                    hint = did_you_mean(key, known)
+                    if hint is not None:
+                        self.err(kspan, f"unknown key '{key}' in '{entity}'", "unknown-key", hint)
         if scene is not None:
             for rb in reach:
                 if rb.robot not in scene.robots:
@@ -1618,7 +1626,7 @@ class CheckReport:
 
     def summary(self) -> str:
         parts = [f"{n} {k}{'s' if n != 1 else ''}" for k, n in self.counts.items() if n]
-        what = ", ".join(parts) if parts else "nothing"
+        what = ", ".join(parts) if parts else f"{len(self.files)} file{'s' * (len(self.files) != 1)}"
         n_err = len(self.reporter.errors)
         if n_err:
             return f"{n_err} error{'s' if n_err != 1 else ''} in {what}"
@@ -1638,11 +1646,22 @@ def expand_paths(paths) -> list[str]:
 
 
 def check_files(paths) -> CheckReport:
-    """Check domains, problems and modules; never raises for bad input."""
+    """Check domains, problems, modules (.pntc) and scenes (.yaml); never raises for bad input."""
     ws = Workspace()
     files = expand_paths(paths)
-    counts = {"domain": 0, "problem": 0, "module": 0}
+    counts = {"domain": 0, "problem": 0, "module": 0, "scene": 0}
     for path in files:
+        suffix = Path(path).suffix.lower()
+        if suffix in (".yaml", ".yml"):
+            from gnppdsl.ir.scene import load_scene
+
+            counts["scene"] += 1
+            load_scene(path, ws.reporter)
+            continue
+        if suffix != ".pntc":
+            ws.err(None, f"{path}: not a .pntc or scene .yaml file", "file-kind",
+                   ) if Path(path).exists() else ws.err(None, f"file not found: {path}", "missing-file")
+            continue
         f = ws.parse(path)
         if f is None:
             continue

@@ -17,8 +17,9 @@ from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
 from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 
 TOP_KEYS = ("name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
-ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "ee", "locked", "home",
-              "shape", "color")
+ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "base_joint", "ee", "locked",
+              "home", "shape", "color")
+BASE_JOINTS = ("fixed", "planar", "free")
 OBJECT_KEYS = ("shape", "size", "pose", "static", "color", "parent", "file", "scale")
 SHAPES = ("box", "cylinder", "sphere", "circle", "mesh")
 
@@ -90,6 +91,7 @@ class _Loader:
         self.dir = Path(path).parent
         self.r = reporter
         self.ok = True
+        self.attr_spans: dict[tuple[str, str], Span] = {}
 
     # ---- diagnostics
     def span(self, node) -> Span:
@@ -175,14 +177,13 @@ class _Loader:
         self.error(key_node, f"unknown key '{key}' in {what}", "unknown-key",
                    did_you_mean(key, known) or "keys: " + ", ".join(known))
 
-    def extra(self, key_node, key: str, val_node, known: tuple[str, ...], what: str) -> Any:
-        """An extra attribute: numbers or lists of numbers; anything else (or a near-miss of a
-        known key) is an unknown key."""
+    def extra(self, key_node, key: str, val_node, known: tuple[str, ...], what: str, entity: str) -> Any:
+        """An extra attribute: a number or a list of numbers; anything else is an unknown key.
+        (Attribute names are checked against the domain's `scene` declarations by the problem
+        resolver, using the key positions recorded in `attr_spans`.)"""
         import yaml
 
-        if did_you_mean(key, known) is not None:
-            self.unknown_key(key_node, key, known, what)
-            return None
+        self.attr_spans[(entity, key)] = self.span(key_node)
         if isinstance(val_node, yaml.SequenceNode):
             try:
                 return self.numbers(val_node, f"attribute '{key}'")
@@ -297,7 +298,7 @@ class _Loader:
         attrs = {}
         for k, (kn, vn) in m.items():
             if k not in ROBOT_KEYS:
-                v = self.extra(kn, k, vn, ROBOT_KEYS, f"robot '{name}'")
+                v = self.extra(kn, k, vn, ROBOT_KEYS, f"robot '{name}'", name)
                 if v is not None:
                     attrs[k] = v
         kind = "urdf"
@@ -306,10 +307,16 @@ class _Loader:
             if kind not in ("planar", "urdf"):
                 self.fail(m["kind"][1], f"unknown robot kind '{kind}'", "scene",
                           did_you_mean(kind, ("planar", "urdf")) or "kinds: planar, urdf")
+        if "base_joint" in m:
+            bj = self.string(m["base_joint"][1], "base_joint")
+            if bj not in BASE_JOINTS:
+                self.fail(m["base_joint"][1], f"unknown base joint '{bj}'", "scene",
+                          did_you_mean(bj, BASE_JOINTS) or "one of: fixed, planar, free")
+            attrs["base_joint"] = bj
         src = str(self.span(knode))
         color = self.color(m["color"][1]) if "color" in m else (0.9, 0.9, 0.9, 1.0)
         if kind == "planar":
-            for k in ("model", "urdf", "srdf", "package_dirs", "locked", "ee", "base"):
+            for k in ("model", "urdf", "srdf", "package_dirs", "locked", "ee", "base", "base_joint"):
                 if k in m:
                     self.error(m[k][0], f"'{k}' does not apply to a planar robot", "scene")
             home = self.numbers(m["home"][1], "home [x, y, theta]", 3) if "home" in m else (0.0, 0.0, 0.0)
@@ -347,7 +354,7 @@ class _Loader:
         attrs = {}
         for k, (kn, vn) in m.items():
             if k not in OBJECT_KEYS:
-                v = self.extra(kn, k, vn, OBJECT_KEYS, f"object '{name}'")
+                v = self.extra(kn, k, vn, OBJECT_KEYS, f"object '{name}'", name)
                 if v is not None:
                     attrs[k] = v
         if "file" in m and not ("shape" in m and self.scalar(m["shape"][1]) == "mesh"):
@@ -355,8 +362,6 @@ class _Loader:
         shape = self.shape(m["shape"][1], m, dim) if "shape" in m else SceneShape("none")
         if "size" in m and shape.kind in ("none", "mesh"):
             self.error(m["size"][0], "`size:` needs a `shape:` (box, cylinder, sphere, circle)")
-        if "radius" in m and "radius" not in attrs:
-            attrs["radius"] = self.number(m["radius"][1], "radius")
         pose = self.pose(m["pose"][1], dim) if "pose" in m else ((0.0, 0.0, 0.0) if dim == 2 else IDENTITY)
         parent = None
         if "parent" in m:
@@ -515,17 +520,24 @@ class _Loader:
 def load_scene(path: str | Path, reporter: Reporter, ref: Span | None = None) -> Scene | None:
     """Load a scene; problems go to `reporter` (a missing file is reported at `ref`, the
     problem's `scene "..."` line). Returns None if anything is wrong."""
+    return load_scene_with_spans(path, reporter, ref)[0]
+
+
+def load_scene_with_spans(path: str | Path, reporter: Reporter, ref: Span | None = None
+                          ) -> tuple[Scene | None, dict[tuple[str, str], Span]]:
+    """`load_scene` plus the positions of extra attribute keys, {(entity, key): span}."""
     p = str(path)
     try:
         text = Path(p).read_text(encoding="utf-8")
     except FileNotFoundError:
         reporter.error(ref, f"scene file not found: {p}", "missing-file")
-        return None
+        return None, {}
     except (OSError, UnicodeDecodeError) as exc:
         reporter.error(ref, f"cannot read scene file {p}: {exc}", "unreadable-file")
-        return None
+        return None, {}
     reporter.sources.add(p, text)
-    return _Loader(p, reporter).load(text)
+    loader = _Loader(p, reporter)
+    return loader.load(text), loader.attr_spans
 
 
 def load_scene_file(path: str | Path) -> Scene:
