@@ -22,6 +22,7 @@ planner and to ipopt (max_wall_time), so the loop ends soon after it with status
 from __future__ import annotations
 
 import hashlib
+import re
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -120,9 +121,21 @@ def load_and_compile(paths: Sequence[str] | str) -> Compiled:
     for p in paths:
         if not Path(p).is_file():
             raise UserError(f"{p}: no such file")
+    if len(paths) > 2:
+        raise UserError("give a problem file, optionally preceded by its domain file")
     from gnppdsl.ir import load_problem
-    problem = load_problem(*paths) if len(paths) > 1 else load_problem(paths[0])
+
+    if len(paths) == 2:
+        # either order: the problem is the file that declares `problem NAME for DOMAIN`
+        first_is_problem = _PROBLEM_HEADER.search(Path(paths[0]).read_text(errors="replace")) is not None
+        prob_path, dom_path = (paths[0], paths[1]) if first_is_problem else (paths[1], paths[0])
+        problem = load_problem(prob_path, dom_path)
+    else:
+        problem = load_problem(paths[0])
     return compile_problem(problem)
+
+
+_PROBLEM_HEADER = re.compile(r"^\s*problem\s+\w+\s+for\s+\w+", re.MULTILINE)
 
 
 def compile_problem(problem: Any) -> Compiled:
