@@ -83,7 +83,11 @@ def _load(paths):
         from gnppdsl.ir import load_problem
     except ImportError:
         raise UserError("the .pntc loader (gnppdsl.ir.load_problem) is not available in this build") from None
-    return load_problem(*paths)
+    if len(paths) > 2:
+        raise UserError("give the problem file, optionally preceded by its domain file")
+    if len(paths) == 2:
+        return load_problem(paths[1], paths[0])     # `gnpp compile domain.pntc p1.pntc`
+    return load_problem(paths[0])
 
 
 def _safe(name: str) -> str:
