@@ -511,8 +511,10 @@ def _syntax_diagnostic(err, path: str, text: str, reporter: Reporter) -> int:
             msg = f"unexpected '{tok.value}'"
         expected = sorted({_terminal_text(t) for t in err.expected if not t.startswith("__ANON")}
                           | {_terminal_text(t) for t in err.expected if t.startswith("__ANON")})
-        hint = None
-        if tok.type != "$END" and str(tok.value) in keywords() and "NAME" in err.expected:
+        hint = _tags_hint(text, getattr(tok, "start_pos", None))
+        if hint is not None:
+            pass
+        elif tok.type != "$END" and str(tok.value) in keywords() and "NAME" in err.expected:
             hint = (f"'{tok.value}' is a reserved word and cannot be used as a name here"
                     + ("; separate tags with commas" if tok.value in DECL_KEYWORDS else ""))
         elif expected:
@@ -538,6 +540,29 @@ def _syntax_diagnostic(err, path: str, text: str, reporter: Reporter) -> int:
         reporter.error(Span(path, len(lines), len(lines[-1]) + 1), "unexpected end of file", "syntax")
         return len(lines)
     raise err
+
+
+_TAGS_TAIL = re.compile(r"\btags\s+\w+(?:\s*,?\s*\w+)*\s*$")
+
+
+def _tags_hint(text: str, pos: int | None) -> str | None:
+    """`tags robot traj` + a newline: `traj` was read as the start of a trajectory declaration.
+    Detect a reserved word inside a space-separated tag list shortly before the error."""
+    if pos is None or pos < 0:
+        return None
+    before = text[:pos]
+    lines = before.splitlines()[-3:]
+    for line in reversed(lines):
+        code = line.split("#", 1)[0]
+        m = re.search(r"\btags\s+([\w\s,]*)$", code)
+        if not m:
+            continue
+        words = re.findall(r"\w+", m.group(1))
+        bad = [w for w in words[1:] if w in DECL_KEYWORDS]
+        if bad:
+            return (f"'{bad[0]}' starts a new declaration; separate tags with commas "
+                    f"(`tags {', '.join(words)}`)")
+    return None
 
 
 def parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
