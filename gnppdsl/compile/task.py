@@ -9,8 +9,8 @@ What the compiler decides here (and why):
   positive auxiliary derived variable that is tested for its default value 0. A `!=` test of a
   multi-valued variable in a precondition, goal or effect condition becomes an auxiliary derived
   variable "v != x" (one axiom per other value), since SAS+ conditions are conjunctions of facts.
-  Axiom layers come from the strongly connected components of the ground dependency graph
-  (negation must cross layers; negation inside recursion is reported as an error).
+  Axiom layers are longest paths in the ground dependency graph where only negative edges
+  count (negation must cross layers; negation inside recursion is reported as an error).
 - `initial` in any rule adds a marker variable `initial` (true only in s_0: every operator
   sets it false), so conflicts that mention it can only ever match at step 0.
 - Ground operators that can never apply (a value outside a variable's domain, contradictory
@@ -259,38 +259,33 @@ class _Builder:
         return Operator(name, pre, tuple(dict.fromkeys(effects)), act.cost)
 
     def layers(self) -> dict[int, int]:
-        """Axiom layers by stratification of the ground dependency graph."""
-        if not any(self.derived[v] for ax in self.axioms for v, _ in ax.conditions):
-            return {v: 0 for v, der in enumerate(self.derived) if der}   # no derived inputs
-        import networkx as nx   # only here: it costs ~0.3 s of start-up for `gnpp compile`
-
-        g = nx.DiGraph()
-        g.add_nodes_from(v for v, der in enumerate(self.derived) if der)
+        """Axiom layers by stratification: layer(head) >= layer(v) for a positive condition on
+        a derived v, > for a negative one (default value 0). Computed as longest paths by
+        relaxation to a fixpoint (no graph library: networkx alone would cost `gnpp compile`
+        0.3 s of start-up); a layer above the number of derived variables can only come from a
+        cycle through a negation, i.e. the predicates are not stratified."""
+        derived = [v for v, der in enumerate(self.derived) if der]
+        layer = {v: 0 for v in derived}
+        edges = {}
         for ax in self.axioms:
             for v, val in ax.conditions:
                 if self.derived[v]:
                     w = 1 if val == 0 else 0
-                    if g.has_edge(v, ax.var):
-                        w = max(w, g[v][ax.var]["w"])
-                    g.add_edge(v, ax.var, w=w)
-        cond = nx.condensation(g)
-        layer_of_scc: dict[int, int] = {}
-        for c in nx.topological_sort(cond):
-            members = cond.nodes[c]["members"]
-            for u in members:
-                for v in g.successors(u):
-                    if v in members and g[u][v]["w"]:
+                    edges[(v, ax.var)] = max(w, edges.get((v, ax.var), 0))
+        edge_list = sorted(edges.items())
+        limit = len(derived)
+        changed = True
+        while changed:
+            changed = False
+            for (u, v), w in edge_list:
+                if layer[u] + w > layer[v]:
+                    layer[v] = layer[u] + w
+                    changed = True
+                    if layer[v] > limit:
                         raise UserError(
                             f"derived predicates are not stratified: {self.names[v]} depends "
-                            f"negatively on {self.names[u]}, which depends on it")
-            lay = 0
-            for pred in cond.predecessors(c):
-                for u in cond.nodes[pred]["members"]:
-                    for v in g.successors(u):
-                        if v in members:
-                            lay = max(lay, layer_of_scc[pred] + g[u][v]["w"])
-            layer_of_scc[c] = lay
-        return {v: layer_of_scc[cond.graph["mapping"][v]] for v in g.nodes}
+                            f"negatively on itself (through {self.names[u]})")
+        return layer
 
 
 def _merge(conjs) -> Conj | None:

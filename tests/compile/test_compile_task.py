@@ -115,3 +115,47 @@ def test_bad_initial_value_is_a_user_error():
     p = planar_ir.problem("p1", init_overrides={("parent", "b1"): "b1"})
     with pytest.raises(UserError, match="not a possible value"):
         build_task(p)
+
+
+def _with_derived(problem, derived: dict, goal=None):
+    dom = m.Domain(**{**problem.domain.__dict__, "derived": {**problem.domain.derived, **derived}})
+    fields = {**problem.__dict__, "domain": dom}
+    if goal is not None:
+        fields["goal"] = goal
+    return m.Problem(**fields)
+
+
+def test_recursive_derived_predicate_with_negation_on_top():
+    # above(x, y) := parent(x) = y or exists z . parent(x) = z and above(z, y)   (positive recursion)
+    # free(y) := not exists x . above(x, y)                                        (negation on top)
+    P, tp = Param, planar_ir.tp
+    above = m.Derived("above", (tp("x", "block"), tp("y", "place", "block")), m.Or((
+        m.StateLit("parent", (P("x"),), P("y")),
+        m.Exists((tp("z", "block"),), m.And((m.StateLit("parent", (P("x"),), P("z")),
+                                             m.DerivedLit("above", (P("z"), P("y")))))))))
+    free = m.Derived("free", (tp("y", "place"),),
+                     m.Not(m.Exists((tp("x", "block"),), m.DerivedLit("above", (P("x"), P("y"))))))
+    p = planar_ir.problem("p2")
+    # let blocks stack: parent may be a block too
+    sv = p.domain.state_vars["parent"]
+    dom = m.Domain(**{**p.domain.__dict__, "state_vars": {**p.domain.state_vars, "parent": m.StateVar(
+        "parent", sv.params, ("place", "gripper", "block"))}})
+    p = m.Problem(**{**p.__dict__, "domain": dom})
+    p = _with_derived(p, {"above": above, "free": free},
+                      goal=(m.DerivedLit("free", (Obj("s1"),)), m.DerivedLit("above", (Obj("b2"), Obj("rb")))))
+    task = build_task(p)
+    lay = {v.name: v.axiom_layer for v in task.variables if v.is_derived}
+    assert lay["above(b1, s1)"] == lay["above(b2, b1)"]          # one recursive stratum
+    assert lay["free(s1)"] > lay["above(b1, s1)"]
+    # optimum 3: pick(b2, g, s2), place(b2, g, rb), pick(b1, g, s1) (b1 held: nothing above s1)
+    assert optimal_cost(task) == 3
+    res = run_fd_on_sas(write_sas(task))
+    assert res.solved and res.cost == 3
+    assert task.goal.holds_in(run_plan(task, res.plan)[-1])
+
+
+def test_negation_through_recursion_is_rejected():
+    P, tp = Param, planar_ir.tp
+    bad = m.Derived("bad", (tp("x", "place"),), m.Not(m.DerivedLit("bad", (P("x"),))))
+    with pytest.raises(UserError, match="not stratified"):
+        build_task(_with_derived(planar_ir.problem("p1"), {"bad": bad}))
