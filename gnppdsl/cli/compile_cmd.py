@@ -133,8 +133,29 @@ def _factors(problem, task, plan) -> str:
         else:
             text = plan
     states = plan_states(task, parse_plan(task, text))
-    factory = GraphNLPFactory(problem, task)
+    factory = GraphNLPFactory(problem, task, robot_dims=_robot_dims(problem))
     return format_factors(task, factory, states)
+
+
+def _robot_dims(problem):
+    """Joint dimensions and limits of URDF robots from their pinocchio models (as the solver
+    does); planar robots and scenes without robot models use the factory's default."""
+    scene = getattr(problem, "scene", None)
+    if scene is None or not any(r.kind == "urdf" for r in scene.robots.values()):
+        return None
+    from gnppdsl.compile.factory import scene_robot_dims
+    from gnppdsl.geometry.context import GeometryContext
+
+    geometry = GeometryContext(scene)
+    fallback = scene_robot_dims(problem)
+
+    def dims(robot: str):
+        if robot in geometry.models:
+            lo_hi = geometry.robot_dims(robot)
+            return lo_hi[0], tuple(map(float, lo_hi[1])), tuple(map(float, lo_hi[2]))
+        return fallback(robot)
+
+    return dims
 
 
 def _write(files, out_dir) -> None:
