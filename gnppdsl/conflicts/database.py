@@ -9,8 +9,10 @@ by networkx's VF2 matcher.
 Persistence (`--db PATH`): every verdict is one SQLite transaction in WAL mode, so a process
 killed at any instant (crash, Ctrl-C, SIGKILL) leaves the file consistent: either the whole
 record is there or none of it. Records are scoped by the domain name plus a fingerprint (a
-hash of the domain's templates and of the scene data that factor bodies do not contain, chosen
-by the caller), so stale data is never reused after the domain changes. The schema is versioned;
+hash of the domain's templates, chosen by the caller), so stale data is never reused after the
+domain changes; the geometry of the objects a factor names (which factor bodies do not contain)
+is part of the factor's label (`object_key`), so problems of one domain with different scenes
+share what holds for both and nothing else. The schema is versioned;
 an unknown version is refused with a clear message instead of being misread.
 """
 from __future__ import annotations
@@ -76,6 +78,9 @@ class SubgraphDatabase:
     feasible: list[Entry] = field(default_factory=list)
     infeasible: list[Entry] = field(default_factory=list)
     stats: DatabaseStats = field(default_factory=DatabaseStats)
+    # identity of an object's geometry (shape, robot model) for factor labels; None: the
+    # fingerprint must then cover the scene's geometry
+    object_key: Any = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self._conn: sqlite3.Connection | None = None
@@ -148,9 +153,10 @@ class SubgraphDatabase:
         self.close()
 
     # ---- queries -----------------------------------------------------------------------------
-    @staticmethod
-    def graph_of(subgraph: Any) -> SemanticGraph:
-        return subgraph if isinstance(subgraph, SemanticGraph) else semantic_graph(subgraph)
+    def graph_of(self, subgraph: Any) -> SemanticGraph:
+        if isinstance(subgraph, SemanticGraph):
+            return subgraph
+        return semantic_graph(subgraph, object_key=self.object_key)
 
     def known_feasible(self, subgraph: Any) -> bool:
         sg = self.graph_of(subgraph)

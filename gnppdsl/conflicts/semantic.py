@@ -27,13 +27,14 @@ from __future__ import annotations
 import hashlib
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import networkx as nx
 from networkx.algorithms import isomorphism
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.conflicts.mapping import factors_of
+from gnppdsl.ir.expr import Obj
 
 _BODY_HASHES: dict[Any, str] = {}
 
@@ -53,8 +54,43 @@ def variable_label(v: VarInstance) -> str:
     return f"x|{v.key}|{v.space}|{v.dim}|{v.waypoints}|{v.lower}|{v.upper}"
 
 
-def factor_label(f: FactorInstance) -> str:
-    return f"h|{f.template}|{len(f.variables)}|{body_hash(f.body)}"
+ObjectKey = Callable[[str], str]
+
+
+def body_objects(body: Any) -> frozenset[str]:
+    """Names of the objects a resolved body refers to (`Obj` nodes: sdist bodies, fk robots)."""
+    found = _BODY_OBJECTS.get(body)
+    if found is None:
+        names: set[str] = set()
+        stack = [body]
+        while stack:
+            e = stack.pop()
+            if isinstance(e, Obj):
+                names.add(e.name)
+            elif isinstance(e, (tuple, list)):
+                stack.extend(e)
+            elif hasattr(e, "__dataclass_fields__"):
+                stack.extend(getattr(e, name) for name in e.__dataclass_fields__ if name != "span")
+        found = frozenset(names)
+        if len(_BODY_OBJECTS) > 200_000:
+            _BODY_OBJECTS.clear()
+        _BODY_OBJECTS[body] = found
+    return found
+
+
+_BODY_OBJECTS: dict[Any, frozenset[str]] = {}
+
+
+def factor_label(f: FactorInstance, object_key: ObjectKey | None = None) -> str:
+    """Template, arity, body hash and -- when `object_key` is given -- the identity of every
+    object the body names (its shape or robot model), which the body itself does not contain:
+    `sdist(b1, ...)` is a different function when b1 has another shape."""
+    label = f"h|{f.template}|{len(f.variables)}|{body_hash(f.body)}"
+    if object_key is not None:
+        objs = sorted(body_objects(f.body))
+        if objs:
+            label += "|" + ",".join(f"{o}:{object_key(o)}" for o in objs)
+    return label
 
 
 @dataclass
@@ -96,12 +132,14 @@ class SemanticGraph:
         return SemanticGraph.from_graph(g)
 
 
-def semantic_graph(subgraph: Any, variables: Iterable[VarInstance] = ()) -> SemanticGraph:
+def semantic_graph(subgraph: Any, variables: Iterable[VarInstance] = (),
+                   object_key: ObjectKey | None = None) -> SemanticGraph:
     """Build the semantic graph of a subgraph-NLP.
 
     `subgraph` is anything `factors_of` accepts; `variables` adds variable vertices that no
     factor touches (their bounds still belong to the NLP). If `subgraph` has a `variables`
-    attribute, those are added too.
+    attribute, those are added too. `object_key` names the geometry of objects (see
+    `factor_label`); without it the caller must scope the database to one scene.
     """
     factors = factors_of(subgraph)
     extra = list(variables)
@@ -126,7 +164,7 @@ def semantic_graph(subgraph: Any, variables: Iterable[VarInstance] = ()) -> Sema
     order = sorted(factors, key=lambda f: (f.step, f.template, f.label, tuple(v.name for v in f.variables)))
     for i, f in enumerate(order):
         fid = f"h|{f.template}|{f.step - t0}|{i}"
-        g.add_node(fid, label=factor_label(f))
+        g.add_node(fid, label=factor_label(f, object_key))
         origin[fid] = f
         slots: dict[str, list[int]] = {}
         for j, v in enumerate(f.variables):

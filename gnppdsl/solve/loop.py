@@ -104,6 +104,7 @@ class Compiled:
     geometry: Any = None              # gnppdsl.geometry.context.GeometryContext or None
     relaxations: tuple = ()           # gnppdsl.nlp.subgraph.Relaxation, loose -> tight
     fingerprint: str = ""
+    object_key: Any = None            # object name -> geometry identity (see `object_keys`)
 
     @property
     def name(self) -> str:
@@ -161,22 +162,53 @@ def compile_problem(problem: Any) -> Compiled:
             return fallback(robot)
     factory = GraphNLPFactory(problem, task, robot_dims=robot_dims)
     relaxations = tuple(Relaxation.of(r.name, r.drop) for r in (problem.relaxations or problem.domain.relaxations))
-    return Compiled(problem, task, factory, geometry, relaxations, fingerprint(problem))
+    return Compiled(problem, task, factory, geometry, relaxations, fingerprint(problem), object_keys(problem))
 
 
 def fingerprint(problem: Any) -> str:
-    """Hash of what the semantic labels of factors do not capture: the domain's templates and
-    rules, and the scene's shapes and robot models (sdist / fk read them at solve time).
-    Poses are folded into factor bodies as constants, so they are not needed here."""
+    """Hash of what the semantic labels of factors do not capture: the domain's templates,
+    rules, frames and continuous declarations, and the scene's shapes and robot models (sdist /
+    fk read them at solve time). Poses are folded into factor bodies as constants, so they are
+    not needed here. Stable across processes (no hash-randomised set order, no spans)."""
     dom = problem.domain
-    parts = [repr(sorted(dom.templates.items())), repr(dom.rules), repr(dom.frames), repr(dom.continuous)]
+    parts = [dom.templates, dom.rules, dom.frames, dom.continuous]
     scene = getattr(problem, "scene", None)
     if scene is not None:
-        parts.append(repr(sorted((n, o.shape) for n, o in scene.objects.items())))
-        parts.append(repr(sorted((n, r.kind, r.model, r.urdf, r.base, r.ee, sorted(r.locked.items()), r.shape)
-                                 for n, r in scene.robots.items())))
-        parts.append(repr(sorted(tuple(sorted(p)) for p in scene.ignore_collisions)))
-    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+        parts.append(scene.dimension)
+        parts.append(scene.ignore_collisions)
+    return hashlib.sha256(canonical(parts).encode()).hexdigest()[:24]
+
+
+def object_keys(problem: Any) -> Callable[[str], str]:
+    """Geometry identity of each scene entity (shape; robot model), for factor labels in the
+    subgraph database: a factor naming `b1` in `sdist` only matches a factor naming an object
+    `b1` of the same shape. Poses are not included (they are constants in the bodies)."""
+    scene = getattr(problem, "scene", None)
+    keys: dict[str, str] = {}
+    if scene is not None:
+        for n, o in scene.objects.items():
+            keys[n] = hashlib.sha256(canonical(o.shape).encode()).hexdigest()[:12]
+        for n, r in scene.robots.items():
+            keys[n] = hashlib.sha256(canonical((r.kind, r.model, r.urdf, r.srdf, r.ee, r.locked, r.shape,
+                                                r.package_dirs)).encode()).hexdigest()[:12]
+    return lambda name: keys.get(name, "-")
+
+
+def canonical(obj: Any) -> str:
+    """A deterministic text form of nested dataclasses / containers (sets sorted, spans and
+    other `compare=False` fields left out)."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        fields = [f for f in dataclasses.fields(obj) if f.compare]
+        return f"{type(obj).__name__}(" + ",".join(f"{f.name}={canonical(getattr(obj, f.name))}" for f in fields) + ")"
+    if isinstance(obj, dict):
+        return "{" + ",".join(sorted(f"{canonical(k)}:{canonical(v)}" for k, v in obj.items())) + "}"
+    if isinstance(obj, (set, frozenset)):
+        return "{" + ",".join(sorted(canonical(x) for x in obj)) + "}"
+    if isinstance(obj, (list, tuple)):
+        return "[" + ",".join(canonical(x) for x in obj) + "]"
+    return repr(obj)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -309,7 +341,7 @@ class _Run:
         self.db: SubgraphDatabase | None = None
         if "g" in options.switches:
             self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
-                                       fingerprint=compiled.fingerprint)
+                                       fingerprint=compiled.fingerprint, object_key=compiled.object_key)
 
     # -- helpers -------------------------------------------------------------------------------
     def say(self, msg: str) -> None:

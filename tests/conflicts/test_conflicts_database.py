@@ -215,3 +215,24 @@ def test_reload_prunes_records_dominated_later(tmp_path: Path):
         assert db.stats.loaded == 2 and len(db.infeasible) == 1
         found = db.infeasible_inside(big + chain("b2", 0, 3, 1))
         assert found is not None and len(found) == 2      # the smallest known conflict
+
+
+def test_object_geometry_is_part_of_factor_identity():
+    from gnppdsl.compile.factors import FactorInstance
+    from gnppdsl.compile.sas import PartialState
+    from gnppdsl.ir.expr import Call, Constraint, Num, Obj, Slot
+    from conflicts_fixture_factors import pose
+
+    def sd(step):
+        return FactorInstance("planar.no_collision", "avoid", (), frozenset({"collision"}), step, 1, (PartialState(),),
+                              (pose("b1", step), pose("b2", step)),
+                              (Constraint(Call("sdist2", (Obj("b1"), Slot(0), Obj("b2"), Slot(1))), ">=", Num(0.0)),))
+
+    shapes_a = {"b1": "circle0.05", "b2": "box0.1"}
+    shapes_b = {"b1": "circle0.20", "b2": "box0.1"}
+    db = SubgraphDatabase(object_key=shapes_a.get)
+    db.add([sd(0)], feasible=False)
+    assert db.lookup([sd(3)]) is False                     # same geometry, other time: known
+    other_scene = SubgraphDatabase(object_key=shapes_b.get)
+    other_scene.infeasible = db.infeasible               # records learned with scene A
+    assert other_scene.lookup([sd(3)]) is None            # b1 has another shape: not reused

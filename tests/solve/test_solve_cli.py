@@ -96,3 +96,18 @@ def test_bench_writes_table_and_csv(capsys, tmp_path):
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == 4 and {r["algorithm"] for r in rows} == {"oneway", "gnpp_trn"}
     assert all(r["solved"] == "True" and r["N"] == "2" for r in rows)
+
+
+@needs_loader
+def test_database_file_is_reused_by_a_later_run(capsys, tmp_path):
+    db = tmp_path / "planar.sqlite"
+    args = ["solve", str(PLANAR / "p3_occupied.pntc"), "--db", str(db), "--json"]
+    assert main(args + [str(tmp_path / "a.json")]) == 0
+    assert main(args + [str(tmp_path / "b.json")]) == 0
+    capsys.readouterr()
+    a = json.loads((tmp_path / "a.json").read_text())
+    b = json.loads((tmp_path / "b.json").read_text())
+    assert a["switches"] == "trng" and a["conflicts"][0]["source"] == "nlp"
+    assert b["conflicts"][0]["source"] == "database"
+    assert b["conflicts"][0]["text"] == a["conflicts"][0]["text"]
+    assert b["stats"]["nlp_solves"] < a["stats"]["nlp_solves"] and b["stats"]["N"] == 4
