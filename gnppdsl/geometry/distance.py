@@ -1,20 +1,16 @@
-"""Signed distance between convex bodies through coal, inside casadi with exact gradients.
+"""Signed distance between convex bodies through coal, inside casadi with exact derivatives.
 
-How the derivative is exact without differentiating coal: coal returns, for the current poses, the
-normal n and the witness points wA, wB (nearest points when separated, deepest points when
-penetrating) with d = n . (wB - wA). By the envelope theorem the gradient of d with respect to
-both rigid poses equals the gradient of
+How the derivatives are exact without differentiating coal: a `casadi.Callback` runs coal at the
+current poses and returns a *local model* of the distance, as numbers whose own derivative is
+declared zero (a "stop gradient"): the active contact features (face, edge, vertex, sphere
+centre) in the bodies' frames (`gnppdsl.geometry.features`). The casadi expression around the
+callback evaluates the model at the symbolic poses. The model has coal's value, the gradient of
+the envelope theorem (d = n . (wB - wA) with witness points moving rigidly), and for polytopes
+and spheres also the exact Hessian; for other curved shapes (cylinders) it falls back to the
+world-fixed normal n . (wB - wA), whose Hessian has only the rigid-motion part.
 
-    d_lin(poses) = n . ((RB wB_loc + pB) - (RA wA_loc + pA))
-
-with n, wA_loc, wB_loc (witness points in the bodies' own frames) held fixed. So a
-`casadi.Callback` returns (n, wA_loc, wB_loc) and declares a structurally zero Jacobian (a
-"stop gradient"), and the distance is the casadi expression d_lin around it: casadi then
-differentiates the pose part exactly (rotation through quaternions or forward kinematics
-included) and even supplies the rigid-motion part of the Hessian.
-
-A body is a list of convex shapes with fixed placements in the body frame (a robot link has
-several; a scene object one); its distance to another body is the minimum over shape pairs.
+A body is a list of convex shapes with fixed placements in the body frame (a scene object has
+one; robot links are merged into one hull); the distance is the minimum over shape pairs.
 """
 from __future__ import annotations
 
@@ -22,6 +18,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+
+from gnppdsl.geometry.features import N_OUT, feature_model, model_expression
 
 
 @dataclass
@@ -50,7 +48,7 @@ def _request():
 _REQ = None
 
 
-def witness(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB):
+def witness(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB, with_shapes: bool = False):
     """Minimum signed distance between two bodies at world poses, with the world normal
     (gradient w.r.t. B's translation) and the two witness points in world coordinates."""
     import coal
@@ -65,19 +63,22 @@ def witness(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB):
             res = coal.DistanceResult()
             d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
             if best is None or d < best[0]:
-                best = (d, np.array(res.normal), np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2()))
+                best = (d, np.array(res.normal), np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2()),
+                        (sa, Ma, sb, Mb))
     if best is None:
         raise ValueError(f"body {body_a.name} or {body_b.name} has no collision shape")
-    return best
+    return best[:4] if not with_shapes else best
 
 
 class WitnessCallback(ca.Callback):
-    """(RA, pA, RB, pB) as one 24-vector [vec(RA) column-major, pA, vec(RB), pB] ->
-    [n (world), wA in A's frame, wB in B's frame]; Jacobian structurally zero (stop gradient)."""
+    """(RA, pA, RB, pB) as one 24-vector [vec(RA) column-major, pA, vec(RB), pB] -> the local
+    contact model of `gnppdsl.geometry.features` (N_OUT numbers); all sensitivities are zero
+    (a "stop gradient"): derivatives come from the model expression around it."""
 
-    def __init__(self, name: str, body_a: ConvexBody, body_b: ConvexBody):
+    def __init__(self, name: str, body_a: ConvexBody, body_b: ConvexBody, features: bool = True):
         ca.Callback.__init__(self)
         self.body_a, self.body_b = body_a, body_b
+        self.features = features
         self.calls = 0
         self.construct(name, {})
 
@@ -91,7 +92,7 @@ class WitnessCallback(ca.Callback):
         return ca.Sparsity.dense(24, 1)
 
     def get_sparsity_out(self, i):
-        return ca.Sparsity.dense(9, 1)
+        return ca.Sparsity.dense(N_OUT, 1)
 
     # Buffer evaluation: casadi hands over raw memory, skipping DM conversions (about 2x faster).
     def has_eval_buffer(self):
@@ -99,61 +100,68 @@ class WitnessCallback(ca.Callback):
 
     def eval_buffer(self, arg, res):
         x = np.frombuffer(arg[0], dtype=np.float64, count=24)
-        out = np.frombuffer(res[0], dtype=np.float64, count=9)
-        out[:] = self._witness_vector(x)
+        out = np.frombuffer(res[0], dtype=np.float64, count=N_OUT)
+        out[:] = self.model(x)
         return 0
 
     def eval(self, arg):
-        return [ca.DM(self._witness_vector(np.array(arg[0], dtype=float).ravel()))]
+        return [ca.DM(self.model(np.array(arg[0], dtype=float).ravel()))]
 
-    def _witness_vector(self, x: np.ndarray) -> np.ndarray:
+    def model(self, x: np.ndarray) -> np.ndarray:
         RA = x[0:9].reshape(3, 3, order="F")
         pA = x[9:12]
         RB = x[12:21].reshape(3, 3, order="F")
         pB = x[21:24]
         self.calls += 1
-        d, n, wa, wb = witness(self.body_a, RA, pA, self.body_b, RB, pB)
+        d, n, wa, wb, (sa, Ma, sb, Mb) = witness(self.body_a, RA, pA, self.body_b, RB, pB, with_shapes=True)
         nn = np.linalg.norm(n)
         if not np.isfinite(d) or nn < 1e-12:
             # Touching exactly (or a degenerate query): fall back to the centre direction.
             c = pB - pA
             n = c / np.linalg.norm(c) if np.linalg.norm(c) > 1e-12 else np.array([0.0, 0.0, 1.0])
             wa = wb = (pA + pB) / 2
+            d = 0.0
         else:
             n = n / nn
-        return np.r_[n, RA.T @ (wa - pA), RB.T @ (wb - pB)]
+        if self.features:
+            return feature_model(sa, Ma, sb, Mb, RA, pA, RB, pB, d, n, wa, wb)
+        out = np.zeros(N_OUT)
+        out[3], out[4] = 1.0, 1.0
+        out[5:8], out[8:11] = RA.T @ (wa - pA), RB.T @ (wb - pB)
+        out[11:14], out[14:17] = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)
+        out[21:24] = n
+        return out
 
     def has_jacobian(self):
         return True
 
+    # Dense zeros (not structural ones): with structurally empty derivative functions casadi's SX
+    # Hessians of call nodes came out as NaN constants. Forward and reverse modes say the same.
     def get_jacobian(self, name, inames, onames, opts):
         x = ca.SX.sym("x", 24)
-        o = ca.SX.sym("o", 9)
-        return ca.Function(name, [x, o], [ca.SX.zeros(9, 24)], inames, onames, opts)
+        o = ca.SX.sym("o", N_OUT)
+        return ca.Function(name, [x, o], [ca.SX.zeros(N_OUT, 24)], inames, onames, opts)
 
-    # Forward and reverse modes say the same thing (zero sensitivities), so that casadi never
-    # builds them from the Jacobian with 0 * NaN products in SX graphs.
     def has_forward(self, nfwd):
         return True
 
     def get_forward(self, nfwd, name, inames, onames, opts):
-        x, o, s = ca.SX.sym("x", 24), ca.SX.sym("o", 9), ca.SX.sym("s", 24, nfwd)
-        return ca.Function(name, [x, o, s], [ca.SX.zeros(9, nfwd)], inames, onames, opts)
+        x, o, s = ca.SX.sym("x", 24), ca.SX.sym("o", N_OUT), ca.SX.sym("s", 24, nfwd)
+        return ca.Function(name, [x, o, s], [ca.SX.zeros(N_OUT, nfwd)], inames, onames, opts)
 
     def has_reverse(self, nadj):
         return True
 
     def get_reverse(self, nadj, name, inames, onames, opts):
-        x, o, s = ca.SX.sym("x", 24), ca.SX.sym("o", 9), ca.SX.sym("s", 9, nadj)
+        x, o, s = ca.SX.sym("x", 24), ca.SX.sym("o", N_OUT), ca.SX.sym("s", N_OUT, nadj)
         return ca.Function(name, [x, o, s], [ca.SX.zeros(24, nadj)], inames, onames, opts)
 
 
 def signed_distance_expr(cb: WitnessCallback, RA, pA, RB, pB):
-    """d_lin: the signed distance as a casadi expression with exact first derivatives."""
+    """The signed distance as a casadi expression: the local contact model around the callback
+    (exact value and first derivatives; exact Hessian wherever the feature model applies)."""
     x = ca.vertcat(ca.reshape(RA, 9, 1), pA, ca.reshape(RB, 9, 1), pB)
-    out = cb(x)
-    n, wa, wb = out[0:3], out[3:6], out[6:9]
-    return ca.dot(n, (ca.mtimes(RB, wb) + pB) - (ca.mtimes(RA, wa) + pA))
+    return model_expression(cb(x), RA, pA, RB, pB)
 
 
 def se2_to_rp(v):
