@@ -565,11 +565,94 @@ def _tags_hint(text: str, pos: int | None) -> str | None:
     return None
 
 
+# ----------------------------------------------------------------------------------------
+# AST cache: unchanged files (the standard library above all) are not re-parsed
+# ----------------------------------------------------------------------------------------
+_CACHE_VERSION = "1"
+
+
+@lru_cache(maxsize=1)
+def _cache_dir() -> Path | None:
+    import os
+
+    if os.environ.get("GNPP_NO_CACHE"):
+        return None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    d = Path(base) / "gnppdsl" / "ast"
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    return d
+
+
+@lru_cache(maxsize=1)
+def _grammar_signature() -> str:
+    import hashlib
+
+    from gnppdsl.resources import grammar_dir
+
+    h = hashlib.sha1(_CACHE_VERSION.encode())
+    h.update((grammar_dir() / "pntc.lark").read_bytes())
+    h.update(Path(__file__).read_bytes())
+    h.update(Path(ast.__file__).read_bytes())
+    return h.hexdigest()
+
+
+def _cache_key(text: str, path: str) -> str:
+    import hashlib
+
+    return hashlib.sha1(f"{_grammar_signature()}\0{path}\0{text}".encode()).hexdigest()
+
+
+def _cache_load(key: str) -> ast.FileAst | None:
+    d = _cache_dir()
+    if d is None:
+        return None
+    import pickle
+
+    try:
+        with open(d / f"{key}.pickle", "rb") as fh:
+            result = pickle.load(fh)
+    except Exception:  # noqa: BLE001 - a missing or stale cache entry is just a miss
+        return None
+    return result if isinstance(result, ast.FileAst) else None
+
+
+def _cache_store(key: str, tree: ast.FileAst) -> None:
+    d = _cache_dir()
+    if d is None:
+        return
+    import os
+    import pickle
+
+    tmp = d / f"{key}.{os.getpid()}.tmp"
+    try:
+        with open(tmp, "wb") as fh:
+            pickle.dump(tree, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, d / f"{key}.pickle")
+    except Exception:  # noqa: BLE001 - caching is an optimisation only
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+
+
 def parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
     """Parse one file's text; syntax errors go to `reporter` and the result is None."""
-    from lark.exceptions import UnexpectedInput
-
     reporter.sources.add(path, text)
+    key = _cache_key(text, path)
+    cached = _cache_load(key)
+    if cached is not None:
+        return cached
+    result = _parse_text(text, path, reporter)
+    if result is not None:
+        _cache_store(key, result)
+    return result
+
+
+def _parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
+    from lark.exceptions import UnexpectedInput
     parser = _lark()
     start = "file"
     current = text
