@@ -1,0 +1,392 @@
+"""The reachability graph of R-LGP (paper 002, Sec. IV): a LazyPRM over end-effector positions.
+
+- Nodes n(x, q, c): end-effector positions x drawn uniformly in the workspace box, each
+  validated by Eq. 2 (`ik_validation`): q reaches x, is within the joint limits and collision-free
+  against the static scene; c is the optimal Eq. 2 cost.
+- Edges: each node to its k nearest neighbours (by position), *not* collision-checked when added
+  (lazy), with the cost of Eq. 3: w_x |x1 - x2| + w_q |q1 - q2| + w_c (c1 + c2).
+- Queries (Sec. IV-B2): the two ends become nodes (IK-solved, or given configurations) whose
+  edges are checked at once; Dijkstra (networkx) finds the cheapest path; only the unchecked
+  edges of that path are checked (L interpolated joint-space configurations); an edge that
+  collides is removed and Dijkstra runs again. An end that cannot connect, a pair of ends in
+  different components, or a node that loses all its edges triggers *enhancement*: Gaussian
+  samples with shrinking covariance around it, validated and connected with checked edges.
+- Solved paths go into the solution library keyed by their (sorted) ends.
+
+The graph only grows more correct: an edge is removed only after a failed check and a checked
+edge is never unchecked, so every returned path consists of checked, collision-free edges and
+its cost is the shortest-path cost of the current graph (checked + still unchecked edges).
+Everything random comes from one `numpy.random.Generator` seeded by `settings.seed`.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import networkx as nx
+import numpy as np
+
+from gnppdsl.errors import UserError
+from gnppdsl.geometry.robots import RobotModel
+from gnppdsl.reach.collision import CollisionChecker, static_obstacles
+from gnppdsl.reach.ik_validation import NodeValidation, ValidationStats, validate_position
+from gnppdsl.reach.library import Solution, SolutionLibrary
+from gnppdsl.reach.settings import ReachSettings
+
+SAMPLE, QUERY, ENHANCE = "sample", "query", "enhance"
+
+
+@dataclass
+class PathResult:
+    """A collision-checked path: graph nodes, their configurations (n x nq) and positions (n x 3)."""
+
+    cost: float
+    nodes: tuple[int, ...]
+    waypoints: np.ndarray
+    positions: np.ndarray
+
+
+@dataclass
+class GraphStats:
+    draws: int = 0
+    build_time: float = 0.0
+    validation: ValidationStats = field(default_factory=ValidationStats)
+    edge_checks: int = 0
+    edges_removed: int = 0
+    enhanced_nodes: int = 0
+    replaced_nodes: int = 0
+    queries: int = 0
+    dijkstra_runs: int = 0
+    query_time: float = 0.0
+
+
+class ReachabilityGraph:
+    """R-LGP reachability graph for one robot. Build with `ReachabilityGraph.from_scene(...)`
+    (or the constructor + `build()`), then ask `path`, `travel_cost`, `query`, `query_configs`."""
+
+    def __init__(self, robot: RobotModel, settings: ReachSettings, checker: CollisionChecker,
+                 home: np.ndarray | None = None):
+        self.robot = robot
+        self.settings = settings
+        self.frame = settings.frame or robot.ee
+        if self.frame is None:
+            raise UserError(f"reachability for '{robot.name}': no end-effector frame (set `frame` or the scene `ee`)")
+        robot.frame_id(self.frame)     # raises a UserError for an unknown frame
+        self.checker = checker
+        self.home = np.asarray(home, dtype=float) if home is not None else robot.home_coords()
+        self.G = nx.Graph()
+        self.library = SolutionLibrary()
+        self.stats = GraphStats()
+        self.rng = np.random.default_rng(settings.seed)
+        self._invalid: set[frozenset] = set()   # edges that failed a check: never re-added
+        self._next_id = 0
+        self._ids: list[int] = []
+        self._X: np.ndarray = np.zeros((0, 3))
+        self._lo = np.asarray(settings.workspace[0], dtype=float)
+        self._hi = np.asarray(settings.workspace[1], dtype=float)
+
+    # ---- construction -----------------------------------------------------------------------
+    @classmethod
+    def from_scene(cls, scene, settings: ReachSettings, build: bool = True, models: dict | None = None
+                   ) -> "ReachabilityGraph":
+        """Graph of `settings.robot` in a loaded scene (`gnppdsl.ir.scene_model.Scene`); the
+        obstacles are the scene's static objects unless `settings.obstacles` names others."""
+        from gnppdsl.geometry.robots import load_robot
+        spec = scene.robots.get(settings.robot)
+        if spec is None:
+            raise UserError(f"reachability: robot '{settings.robot}' is not in scene '{scene.name}' "
+                            f"(robots: {', '.join(scene.robots) or 'none'})")
+        if spec.kind != "urdf":
+            raise UserError(f"reachability: robot '{settings.robot}' has no kinematic model (kind '{spec.kind}'); "
+                            "the reachability graph needs a URDF robot")
+        robot = (models or {}).get(settings.robot) or load_robot(spec)
+        obstacles = static_obstacles(scene, settings.robot, settings.obstacles)
+        fixed_base = spec.attributes.get("base_joint") in (None, "fixed")
+        checker = CollisionChecker(robot, obstacles, settings.margin, settings.self_collision,
+                                   frozenset(frozenset(p) for p in scene.ignore_collisions), fixed_base)
+        g = cls(robot, settings, checker, robot.home_coords(spec.home))
+        if build:
+            g.build()
+        return g
+
+    def build(self) -> "ReachabilityGraph":
+        """Sample N_node validated nodes (at most `settings.draws` draws), then k-NN edges (lazy)."""
+        s = self.settings
+        t0 = time.perf_counter()
+        while self.num_samples < s.samples and self.stats.draws < s.draws:
+            self.stats.draws += 1
+            x = self.rng.uniform(self._lo, self._hi)
+            v = self._validate(x)
+            if v is not None:
+                self._add_node(v, SAMPLE)
+        for u in list(self._ids):
+            self._connect(u, check=False)
+        self.stats.build_time += time.perf_counter() - t0
+        return self
+
+    @property
+    def num_samples(self) -> int:
+        return sum(1 for _, k in self.G.nodes(data="kind") if k == SAMPLE)
+
+    def _validate(self, x, extra_seeds=()) -> NodeValidation | None:
+        seeds = list(extra_seeds)
+        for u in self.nearest(x, 2):
+            seeds.append(self.G.nodes[u]["q"])
+        seeds.append(self.home)
+        return validate_position(self.robot, self.checker, self.frame, x, self.rng, seeds,
+                                 self.settings.ik_restarts, self.settings.ik_tolerance, self.stats.validation)
+
+    def _add_node(self, v: NodeValidation, kind: str) -> int:
+        nid = self._next_id
+        self._next_id += 1
+        self.G.add_node(nid, x=np.asarray(v.x, dtype=float), q=np.asarray(v.q, dtype=float), c=float(v.cost), kind=kind)
+        self._ids.append(nid)
+        self._X = np.vstack([self._X, np.asarray(v.x, dtype=float)[None, :]])
+        return nid
+
+    def _remove_node(self, nid: int) -> None:
+        i = self._ids.index(nid)
+        self._ids.pop(i)
+        self._X = np.delete(self._X, i, axis=0)
+        self.G.remove_node(nid)
+
+    def nearest(self, x, k: int, exclude=()) -> list[int]:
+        """The k nodes nearest to position x (brute force: a few thousand nodes at most)."""
+        if not self._ids:
+            return []
+        d = np.linalg.norm(self._X - np.asarray(x, dtype=float)[None, :], axis=1)
+        order = np.argsort(d, kind="stable")
+        out = []
+        for i in order:
+            nid = self._ids[i]
+            if nid in exclude:
+                continue
+            out.append(nid)
+            if len(out) == k:
+                break
+        return out
+
+    def edge_cost(self, u: int, v: int) -> float:
+        """Eq. 3."""
+        a, b = self.G.nodes[u], self.G.nodes[v]
+        wx, wq, wc = self.settings.weights
+        return float(wx * np.linalg.norm(a["x"] - b["x"]) + wq * np.linalg.norm(a["q"] - b["q"])
+                     + wc * (a["c"] + b["c"]))
+
+    def _connect(self, u: int, check: bool) -> int:
+        """Edges from u to its k nearest nodes; with `check`, only those passing the collision
+        check are kept (and marked checked). Returns the number of edges u gained or kept."""
+        n = 0
+        for v in self.nearest(self.G.nodes[u]["x"], self.settings.neighbours, exclude={u}):
+            e = frozenset((u, v))
+            if e in self._invalid:
+                continue
+            if self.G.has_edge(u, v):
+                if check and not self.G[u][v]["checked"] and not self.check_edge(u, v):
+                    continue
+                n += 1
+                continue
+            self.G.add_edge(u, v, cost=self.edge_cost(u, v), checked=False)
+            if check and not self.check_edge(u, v):
+                continue
+            n += 1
+        return n
+
+    # ---- lazy edge checks ---------------------------------------------------------------------
+    def edge_configs(self, u: int, v: int) -> np.ndarray:
+        """The interior configurations an edge check visits."""
+        return self.checker.segment_configs(self.G.nodes[u]["q"], self.G.nodes[v]["q"],
+                                            self.settings.interpolation, self.settings.max_joint_step)
+
+    def check_edge(self, u: int, v: int) -> bool:
+        """Collision-check edge (u, v) now: mark it checked, or remove it (for good)."""
+        self.stats.edge_checks += 1
+        ok = self.checker.segment_free(self.G.nodes[u]["q"], self.G.nodes[v]["q"],
+                                       self.settings.interpolation, self.settings.max_joint_step)
+        if ok:
+            self.G[u][v]["checked"] = True
+        else:
+            self.G.remove_edge(u, v)
+            self._invalid.add(frozenset((u, v)))
+            self.stats.edges_removed += 1
+        return ok
+
+    # ---- enhancement (Gaussian sampling, Sec. IV-B2) ------------------------------------------
+    def _anchored(self, u: int) -> bool:
+        """Does u's component contain a pre-built sample node (other than u)?"""
+        return any(self.G.nodes[w]["kind"] == SAMPLE and w != u for w in nx.node_connected_component(self.G, u))
+
+    def _enhance(self, center, goal: Callable[[], bool], seed_q=None) -> bool:
+        """Gaussian samples around `center` (standard deviation shrinking each round), each
+        validated and connected with checked edges, until `goal()` holds."""
+        s = self.settings
+        sigma = s.enhance_sigma
+        center = np.asarray(center, dtype=float)
+        for _ in range(s.enhance_rounds):
+            for _ in range(s.enhance_samples):
+                x = np.clip(self.rng.normal(center, sigma), self._lo, self._hi)
+                v = self._validate(x, [seed_q] if seed_q is not None else [])
+                if v is None:
+                    continue
+                nid = self._add_node(v, ENHANCE)
+                self.stats.enhanced_nodes += 1
+                self._connect(nid, check=True)
+                if goal():
+                    return True
+            sigma *= s.enhance_decay
+        return goal()
+
+    def _replace_isolated(self, w: int) -> None:
+        """A node that lost all its edges is replaced by enhancement around it: the new node
+        that connect to the graph stay, the rest are dropped (paper: keeps the graph connected)."""
+        x, q = self.G.nodes[w]["x"], self.G.nodes[w]["q"]
+        self._remove_node(w)
+        self.stats.replaced_nodes += 1
+        before = set(self._ids)
+        self._enhance(x, lambda: any(self.G.degree(n) > 0 for n in set(self._ids) - before), seed_q=q)
+        new = [n for n in set(self._ids) - before]
+        connected = [n for n in new if self.G.degree(n) > 0]
+        if connected:   # keep the best connected replacement, drop the other isolated samples
+            for n in new:
+                if self.G.degree(n) == 0:
+                    self._remove_node(n)
+
+    # ---- ends of a query -------------------------------------------------------------------------
+    def _find(self, x=None, q=None) -> int | None:
+        for u in self.nearest(x, 1) if x is not None else []:
+            if np.linalg.norm(self.G.nodes[u]["x"] - x) <= 1e-9:
+                return u
+        if q is not None:
+            for u in self._ids:
+                if self.G.nodes[u]["q"].shape == q.shape and np.allclose(self.G.nodes[u]["q"], q, atol=1e-9, rtol=0):
+                    return u
+        return None
+
+    def attach_position(self, x) -> int | None:
+        """A node at end-effector position x (existing, or IK-solved and connected with checked
+        edges, enhanced if it cannot connect); None if x is unreachable."""
+        x = np.asarray(x, dtype=float).ravel()
+        u = self._find(x=x)
+        if u is not None:
+            return u
+        v = self._validate(x)
+        if v is None:
+            return None
+        u = self._add_node(v, QUERY)
+        self._attach(u)
+        return u
+
+    def attach_config(self, q) -> int:
+        """A node for a given configuration (e.g. a trajectory's start): its position comes from
+        pinocchio forward kinematics; the configuration is taken as given (not re-validated)."""
+        q = np.asarray(q, dtype=float).ravel()
+        u = self._find(x=self.fk_position(q), q=q)
+        if u is not None and np.allclose(self.G.nodes[u]["q"], q, atol=1e-9, rtol=0):
+            return u
+        u = self._add_node(NodeValidation(self.fk_position(q), q, 0.0, 0), QUERY)
+        self._attach(u)
+        return u
+
+    def _attach(self, u: int) -> None:
+        self._connect(u, check=True)
+        if not self._anchored(u):
+            self._enhance(self.G.nodes[u]["x"], lambda: self._anchored(u), seed_q=self.G.nodes[u]["q"])
+
+    def fk_position(self, q) -> np.ndarray:
+        """World position of the graph's frame at configuration q (pinocchio)."""
+        import pinocchio as pin
+        data = self.robot.model.createData()
+        pin.framesForwardKinematics(self.robot.model, data, self.robot.to_pin_q(q))
+        T = self.robot.base @ np.array(data.oMf[self.robot.frame_id(self.frame)].homogeneous)
+        return T[:3, 3].copy()
+
+    @property
+    def start_position(self) -> np.ndarray:
+        """End-effector position at the home configuration (where the first action's travel starts)."""
+        return self.fk_position(self.home)
+
+    # ---- queries ------------------------------------------------------------------------------
+    def shortest_path(self, s: int, t: int, enhance: bool = True) -> PathResult | None:
+        """Lazy shortest path between two nodes: Dijkstra, check the path's unchecked edges,
+        remove colliding ones and repeat; enhance once around the ends if they are disconnected."""
+        enhanced = not enhance
+        while True:
+            self.stats.dijkstra_runs += 1
+            try:
+                cost, nodes = nx.single_source_dijkstra(self.G, s, t, weight="cost")
+            except nx.NetworkXNoPath:
+                if enhanced:
+                    return None
+                enhanced = True
+                for end in (s, t):
+                    if not nx.has_path(self.G, s, t):
+                        self._enhance(self.G.nodes[end]["x"], lambda: nx.has_path(self.G, s, t),
+                                      seed_q=self.G.nodes[end]["q"])
+                continue
+            bad = None
+            for u, v in zip(nodes, nodes[1:]):
+                if not self.G[u][v]["checked"] and not self.check_edge(u, v):
+                    bad = (u, v)
+                    break
+            if bad is None:
+                return PathResult(float(cost), tuple(nodes),
+                                  np.array([self.G.nodes[n]["q"] for n in nodes]).reshape(len(nodes), -1),
+                                  np.array([self.G.nodes[n]["x"] for n in nodes]).reshape(len(nodes), 3))
+            for w in bad:
+                if w not in (s, t) and self.G.degree(w) == 0:
+                    self._replace_isolated(w)
+
+    def _solve(self, key_a, key_b, attach_a, attach_b) -> Solution | None:
+        self.stats.queries += 1
+        hit = self.library.get(key_a, key_b)
+        if hit is not None:
+            return hit
+        t0 = time.perf_counter()
+        try:
+            s = attach_a()
+            t = attach_b()
+            if s is None or t is None:
+                sol = Solution((key_a, key_b), np.zeros((0, self.robot.nc)), math.inf)
+            else:
+                r = self.shortest_path(s, t)
+                sol = (Solution((key_a, key_b), r.waypoints, r.cost, r.nodes) if r is not None
+                       else Solution((key_a, key_b), np.zeros((0, self.robot.nc)), math.inf))
+        finally:
+            self.stats.query_time += time.perf_counter() - t0
+        self.library.put(key_a, key_b, sol)
+        return sol
+
+    def query(self, a, b) -> Solution:
+        """Path between two end-effector positions (cost inf and an empty path if none)."""
+        a, b = np.asarray(a, dtype=float).ravel(), np.asarray(b, dtype=float).ravel()
+        return self._solve(self.library.end("x", a), self.library.end("x", b),
+                           lambda: self.attach_position(a), lambda: self.attach_position(b))
+
+    def query_configs(self, qa, qb) -> Solution:
+        """Path between two configurations (used to warm-start trajectories)."""
+        qa, qb = np.asarray(qa, dtype=float).ravel(), np.asarray(qb, dtype=float).ravel()
+        return self._solve(self.library.end("q", qa), self.library.end("q", qb),
+                           lambda: self.attach_config(qa), lambda: self.attach_config(qb))
+
+    def path(self, from_position, to_position) -> tuple[float, np.ndarray]:
+        """(cost, waypoints in joint space, n x nq) of the cheapest collision-checked path between
+        two end-effector positions; (inf, empty array) if an end is unreachable or disconnected."""
+        sol = self.query(from_position, to_position)
+        return sol.cost, sol.path
+
+    def travel_cost(self, a, b) -> float:
+        """Heuristic cost h of moving the end effector from position a to position b."""
+        return self.query(a, b).cost
+
+    # ---- inspection ------------------------------------------------------------------------------
+    def nodes(self, kind: str | None = None) -> list[int]:
+        return [n for n, k in self.G.nodes(data="kind") if kind is None or k == kind]
+
+    def summary(self) -> str:
+        v = self.stats.validation
+        return (f"reachability graph {self.robot.name}/{self.frame}: {self.G.number_of_nodes()} nodes "
+                f"({self.num_samples} samples from {self.stats.draws} draws, IK success {v.success_rate:.0%}), "
+                f"{self.G.number_of_edges()} edges ({sum(1 for *_, c in self.G.edges(data='checked') if c)} checked, "
+                f"{self.stats.edges_removed} removed), built in {self.stats.build_time:.2f} s")
