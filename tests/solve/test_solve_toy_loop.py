@@ -139,3 +139,19 @@ def test_interpolation_and_keyframes():
     b = VarInstance("q", ("r",), 0, "R", 2, lower=(-1.0, -1.0), upper=(1.0, 1.0))
     assert bound_violation([b], {b: np.array([0.5, 1.25])}) == pytest.approx(0.25)
     assert bound_violation([b], {b: np.array([0.5, -0.5])}) == 0.0
+
+
+def test_a_solution_failing_the_independent_recheck_is_not_returned(monkeypatch):
+    import gnppdsl.nlp.evaluate as evaluate
+    from gnppdsl.solve.result import SOLVER_FAILURE
+
+    real = evaluate.max_violation
+
+    def corrupted(factors, values, geometry=None):
+        worst, arg = real(factors, values, geometry)
+        return worst + 1.0, arg          # as if the solver's values violated a factor
+
+    monkeypatch.setattr(evaluate, "max_violation", corrupted)
+    res = solve_compiled(occupied_problem(), SolveOptions(time_limit=60, max_horizon=6))
+    assert res.status == SOLVER_FAILURE and not res.solved
+    assert "independent re-check" in res.message
