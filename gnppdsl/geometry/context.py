@@ -115,7 +115,7 @@ class GeometryContext:
         key = (ka, kb, planar)
         if key not in self._callbacks:
             name = fn_name("sdist2" if planar else "sdist", ka[0], ka[1] or "", kb[0], kb[1] or "")
-            self._callbacks[key] = WitnessCallback(name, self.body(a, planar), self.body(b, planar))
+            self._callbacks[key] = WitnessCallback(name, self.body(a, planar), self.body(b, planar), planar=planar)
         return self._callbacks[key]
 
     # -- protocol: symbolic ---------------------------------------------------------------------

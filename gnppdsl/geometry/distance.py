@@ -75,10 +75,11 @@ class WitnessCallback(ca.Callback):
     contact model of `gnppdsl.geometry.features` (N_OUT numbers); all sensitivities are zero
     (a "stop gradient"): derivatives come from the model expression around it."""
 
-    def __init__(self, name: str, body_a: ConvexBody, body_b: ConvexBody, features: bool = True):
+    def __init__(self, name: str, body_a: ConvexBody, body_b: ConvexBody, features: bool = True,
+                 planar: bool = False):
         ca.Callback.__init__(self)
         self.body_a, self.body_b = body_a, body_b
-        self.features = features
+        self.features, self.planar = features, planar
         self.calls = 0
         self.construct(name, {})
 
@@ -124,7 +125,7 @@ class WitnessCallback(ca.Callback):
         else:
             n = n / nn
         if self.features:
-            return feature_model(sa, Ma, sb, Mb, RA, pA, RB, pB, d, n, wa, wb)
+            return feature_model(sa, Ma, sb, Mb, RA, pA, RB, pB, d, n, wa, wb, self.planar)
         out = np.zeros(N_OUT)
         out[3], out[4] = 1.0, 1.0
         out[5:8], out[8:11] = RA.T @ (wa - pA), RB.T @ (wb - pB)

@@ -62,17 +62,32 @@ def _planes(shape) -> tuple[np.ndarray, np.ndarray] | None:
     return res
 
 
-def shape_feature(shape, p_local: np.ndarray, tol: float = 1e-7):
+def shape_feature(shape, p_local: np.ndarray, tol: float = 1e-7, planar: bool = False):
     """The active feature of `shape` at a boundary point (shape frame):
-    ("face", [u1, u2]), ("edge", [e]), ("vertex", []), ("sphere", radius) or None (unsupported)."""
+    ("face", [u1, u2]), ("edge", [e]), ("vertex", []), ("sphere", radius) or None (unsupported).
+
+    `planar`: the shape is a z-extrusion moving in the plane, so only its side planes count and
+    features lose their vertical direction: a side face acts as a 2-D edge ("edge", [horizontal
+    direction]), a vertical edge as a 2-D vertex, and a z-aligned cylinder as a disc ("sphere")."""
     import coal
     if isinstance(shape, coal.Sphere):
+        return ("sphere", float(shape.radius))
+    if planar and isinstance(shape, coal.Cylinder):
         return ("sphere", float(shape.radius))
     pl = _planes(shape)
     if pl is None:
         return None
     N, O = pl
-    active = np.nonzero(np.abs(N @ p_local - O) < tol * max(1.0, float(np.abs(O).max())))[0]
+    near = np.abs(N @ p_local - O) < tol * max(1.0, float(np.abs(O).max()))
+    if planar:
+        near &= np.abs(N[:, 2]) < 1e-9          # side planes only
+        normals = N[near]
+        if len(normals) == 0:
+            return None
+        if len(normals) == 1:
+            return ("edge", [np.array((-normals[0][1], normals[0][0], 0.0))])
+        return ("vertex", [])
+    active = np.nonzero(near)[0]
     if len(active) == 0:
         return None
     normals = N[active]
@@ -92,21 +107,24 @@ def shape_feature(shape, p_local: np.ndarray, tol: float = 1e-7):
     return ("vertex", [])
 
 
-def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb) -> np.ndarray:
+def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb, planar: bool = False) -> np.ndarray:
     """Callback output (length N_OUT) for the closest shape pair of two bodies.
 
     Ma, Mb: 4x4 shape placements in the body frames; (RA, pA), (RB, pB): body world poses;
-    d, n, wa, wb: coal's distance, normal (A to B) and world witness points."""
+    d, n, wa, wb: coal's distance, normal (A to B) and world witness points. `planar`: both
+    bodies are z-extrusions moving in the plane z = 0 (`sdist2`)."""
     out = np.zeros(N_OUT)
     la = RA.T @ (wa - pA)                 # witness points in the body frames
     lb = RB.T @ (wb - pB)
+    if planar:                            # same height for both: the model is the 2-D distance
+        la[2] = lb[2] = 0.0
     out[5:8], out[8:11] = la, lb
     out[21:24] = n
     out[3] = 1.0                          # fallback unless the feature model reproduces d
     out[4] = 1.0
     out[11:14], out[14:17] = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)   # safe defaults (non-parallel)
-    fa = shape_feature(shape_a, Ma[:3, :3].T @ (la - Ma[:3, 3]))
-    fb = shape_feature(shape_b, Mb[:3, :3].T @ (lb - Mb[:3, 3]))
+    fa = shape_feature(shape_a, Ma[:3, :3].T @ (RA.T @ (wa - pA) - Ma[:3, 3]), planar=planar)
+    fb = shape_feature(shape_b, Mb[:3, :3].T @ (RB.T @ (wb - pB) - Mb[:3, 3]), planar=planar)
     if fa is None or fb is None:
         return out
     ra = rb = 0.0
@@ -114,10 +132,13 @@ def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb) -> np.
     for f, M, owner in ((fa, Ma, 0), (fb, Mb, 1)):
         kind, data = f
         if kind == "sphere":
+            c = M[:3, 3].copy()
+            if planar:
+                c[2] = 0.0
             if owner == 0:
-                ra, out[5:8] = data, Ma[:3, 3]
+                ra, out[5:8] = data, c
             else:
-                rb, out[8:11] = data, Mb[:3, 3]
+                rb, out[8:11] = data, c
         else:
             dirs += [(M[:3, :3] @ u, owner) for u in data]
     if len(dirs) > 2:                           # face-face / face-edge (parallel): keep a face
