@@ -99,3 +99,35 @@ def _robot_dims(problem):
     geometry = pytest.importorskip("gnppdsl.geometry.context")
     ctx = geometry.GeometryContext(scene)
     return ctx.robot_dims
+
+
+def test_cli_conflict_lengthens_optimal_plan(tmp_path, capsys):
+    """p3: forbidding `b1 in target while b2 still on s2` (the geometric conflict of the paper's
+    loop) turns the 2-step optimum into 4 steps; the emitted .sas is checked by FD."""
+    pytest.importorskip("gnppdsl.logic.reformulation")
+    path = ROOT / "examples" / "planar" / "p3_occupied.pntc"
+    _load(path)
+    from gnppdsl.cli.main import main
+
+    conflicts = tmp_path / "c.txt"
+    conflicts.write_text("<{parent(b1) = target, parent(b2) = s2}>\n")
+    assert main(["compile", str(path), "--emit", "sas"]) == 0
+    assert run_fd_on_sas(capsys.readouterr().out).length == 2
+    assert main(["compile", str(path), "--emit", "sas", "--conflicts", str(conflicts)]) == 0
+    res = run_fd_on_sas(capsys.readouterr().out)
+    assert res.solved and res.length == 4
+    assert main(["compile", str(path), "--emit", "pddl", "--conflicts", str(conflicts), "-o", str(tmp_path / "pd")]) == 0
+    pd = tmp_path / "pd"
+    res = run_fd_on_sas(translate_pddl((pd / "domain.pddl").read_text(), (pd / "p3_occupied.pddl").read_text()))
+    assert res.solved and res.cost == 4
+
+
+def test_cli_bad_problem_file_exits_2(tmp_path, capsys):
+    _load(ROOT / "examples" / "planar" / "p1_one_block.pntc")
+    from gnppdsl.cli.main import main
+
+    bad = tmp_path / "bad.pntc"
+    bad.write_text("problem bad for no_such_domain\nobjects { b1 : block }\n")
+    assert main(["compile", str(bad), "--emit", "sas"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.pntc" in err and "Traceback" not in err
