@@ -328,6 +328,7 @@ class _Run:
         self.compiled, self.options, self.progress = compiled, options, progress
         self.task = compiled.task
         self.start = time.perf_counter()
+        self.cpu_start = time.process_time()
         self.deadline = self.start + options.time_limit
         self.stats = Stats()
         self.conflicts: list[Conflict] = []
@@ -412,6 +413,7 @@ class _Run:
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.stats.total_time = time.perf_counter() - self.start
+        self.stats.cpu_time = time.process_time() - self.cpu_start
         # NLPs = feasibility problems solved (each may take several ipopt runs: restarts and
         # a polish before an infeasible verdict, counted in ipopt_runs); time of all of them
         self.stats.nlp_solves = self.nlp_calls + self.heuristic_solves
