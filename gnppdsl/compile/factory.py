@@ -118,7 +118,6 @@ class GraphNLPFactory:
         self.cont_order = {name: k for k, name in enumerate(self.domain.continuous)}
         self.obj_order = {name: k for k, name in enumerate(problem.objects)}
         self._vars: dict[tuple, VarInstance] = {}
-        self._n = 0
         self._memo: tuple | None = None        # last (states, factors): variables() reuses it
 
     # ---- public API --------------------------------------------------------------------
@@ -137,7 +136,6 @@ class GraphNLPFactory:
         if not states:
             return []
         n = len(states) - 1
-        self._n = n
         out: list[FactorInstance] = []
         for i in range(n + 1):
             for gr in self.rules:
