@@ -81,6 +81,10 @@ class WitnessCallback(ca.Callback):
         self.body_a, self.body_b = body_a, body_b
         self.features, self.planar = features, planar
         self.calls = 0
+        # ipopt evaluates constraints, their Jacobian and the Hessian at the same point: remember
+        # recent answers (keyed by the exact input bytes) so coal runs once per point.
+        self._memo: dict[bytes, np.ndarray] = {}
+        self.hits = 0
         self.construct(name, {})
 
     def get_n_in(self):
@@ -109,6 +113,18 @@ class WitnessCallback(ca.Callback):
         return [ca.DM(self.model(np.array(arg[0], dtype=float).ravel()))]
 
     def model(self, x: np.ndarray) -> np.ndarray:
+        key = x.tobytes()
+        out = self._memo.get(key)
+        if out is not None:
+            self.hits += 1
+            return out
+        out = self._model(x)
+        if len(self._memo) >= 4096:
+            self._memo.pop(next(iter(self._memo)))    # oldest first (dicts keep insertion order)
+        self._memo[key] = out
+        return out
+
+    def _model(self, x: np.ndarray) -> np.ndarray:
         RA = x[0:9].reshape(3, 3, order="F")
         pA = x[9:12]
         RB = x[12:21].reshape(3, 3, order="F")
