@@ -546,3 +546,91 @@ def test_undeclared_scene_attribute_near_miss(tmp_path):
     d = check(tmp_path, problem=PROBLEM + 'scene "s.yaml"\n', files={"s.yaml": scene})
     x = at(d, 3, 25, "unknown-key", "s.yaml")
     assert x.hint == "did you mean 'radius'?"
+
+
+# ---------------------------------------------------------------- remaining kinds
+def test_type_union_in_action_parameter(tmp_path):
+    at(check(tmp_path, "action a(x: block | place) { pre free(x) }\n"), 15, 21, "type-union")
+
+
+def test_bool_combined_with_types(tmp_path):
+    at(check(tmp_path, "state s(o: block) : bool | place\n"), 15, 21, "state-domain")
+
+
+def test_negative_cost(tmp_path):
+    at(check(tmp_path, "action a(g: gripper) { cost 1.5 }\n"), 15, 29, "cost")
+
+
+def test_bad_waypoints(tmp_path):
+    at(check(tmp_path, "traj w(g: gripper) : SE2 waypoints 1\n"), 15, 36, "waypoints")
+
+
+def test_space_takes_no_argument(tmp_path):
+    at(check(tmp_path, "continuous v(o: block) : SE2[3]\n"), 15, 26, "space")
+
+
+def test_parameter_is_not_callable(tmp_path):
+    d = check(tmp_path, """\
+        template t(a: R) {
+          a(1) == 1
+        }
+        """)
+    at(d, 16, 3, "not-callable")
+
+
+def test_with_substitutes_only_variables(tmp_path):
+    d = check(tmp_path, """\
+        template t(o: block, g: gripper) {
+          (norm(pos(world(o))) with world(g) = [1, 2, 3]) >= 0
+        }
+        """)
+    at(d, 16, 29, "with")
+
+
+def test_type_cycle_position(tmp_path):
+    d = check(tmp_path, "type a < b\ntype b < a\n")
+    at(d, 15, 1, "cycle")
+
+
+def test_module_name_must_match_file(tmp_path):
+    (tmp_path / "m.pntc").write_text("module other\n")
+    (tmp_path / "domain.pntc").write_text("domain d\nuse m\n")
+    d = check_files([str(tmp_path / "domain.pntc")]).reporter.diagnostics
+    at(d, 1, 8, "module-name", "m.pntc")
+
+
+def test_use_of_a_domain_file(tmp_path):
+    (tmp_path / "m.pntc").write_text("domain other\n")
+    (tmp_path / "domain.pntc").write_text("domain d\nuse m\n")
+    d = check_files([str(tmp_path / "domain.pntc")]).reporter.diagnostics
+    at(d, 2, 5, "not-a-module")
+
+
+def test_problem_given_as_domain(tmp_path):
+    from gnppdsl.ir.resolve import Workspace
+
+    (tmp_path / "p.pntc").write_text("problem p for d\n")
+    ws = Workspace()
+    assert ws.domain(tmp_path / "p.pntc") is None
+    at(ws.reporter.diagnostics, 1, 1, "not-a-domain")
+    ws2 = Workspace()
+    (tmp_path / "domain.pntc").write_text(BASE)
+    assert ws2.problem(tmp_path / "domain.pntc") is None
+    at(ws2.reporter.diagnostics, 1, 1, "not-a-problem")
+
+
+def test_wrong_domain(tmp_path):
+    from gnppdsl.ir.resolve import Workspace
+
+    (tmp_path / "domain.pntc").write_text(BASE)
+    (tmp_path / "p.pntc").write_text("problem p for other\ngoal { }\n")
+    ws = Workspace()
+    assert ws.problem(tmp_path / "p.pntc", tmp_path / "domain.pntc") is None
+    at(ws.reporter.diagnostics, 1, 15, "wrong-domain")
+
+
+def test_file_kinds(tmp_path):
+    (tmp_path / "notes.txt").write_text("hello")
+    (tmp_path / "bad.pntc").write_bytes(b"domain d\ntype \xff\n")
+    ds = check_files([str(tmp_path / "notes.txt"), str(tmp_path / "bad.pntc")]).reporter.diagnostics
+    assert [d.kind for d in ds] == ["file-kind", "unreadable-file"]
