@@ -1,5 +1,7 @@
 """`gnpp compile PROBLEM --emit sas|pddl|asp|factors [-o DIR]`: show what the compiler makes.
 
+Compile a problem and write one of:
+
 - `sas`      the grounded SAS+ task as Fast Downward `.sas` text (`PROBLEM.sas`);
 - `pddl`     the same task as PDDL (`domain.pddl` + `PROBLEM.pddl`);
 - `asp`      the clingo program of the logic planner (`PROBLEM.lp`, runs with `clingo FILE`);
@@ -25,6 +27,7 @@ EPILOG = """examples:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.description = __doc__.split("\n", 1)[1].strip() if __doc__ else None
     parser.epilog = EPILOG
     parser.add_argument("paths", nargs="+", metavar="PROBLEM",
                         help="the problem file (.pntc); a domain file may be given before it")
