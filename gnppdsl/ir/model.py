@@ -531,7 +531,9 @@ class Domain:
     """A resolved, type-checked domain with everything it imports (`use` + implicit prelude).
 
     Dicts preserve declaration order. `templates` holds all templates reachable by the domain,
-    keyed by qualified name. `constants` are objects declared by the domain
+    keyed by qualified name. Templates some rule calls (and all templates of the domain file)
+    are fully checked; templates of used modules that no rule calls were checked leniently (they
+    may refer to variables other domains declare) and should not be instantiated. `constants` are objects declared by the domain
     (`constants { table: surface }`), present in every problem.
     """
 

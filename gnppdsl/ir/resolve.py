@@ -1540,6 +1540,7 @@ class ProblemResolver:
         reach = list(dom.reachability)
         scene_path = None
         scene = None
+        scene_ref_span = None
         for d in f.items:
             if isinstance(d, ast.SolverDecl):
                 settings = settings_solver(self, d, settings)
@@ -1554,6 +1555,7 @@ class ProblemResolver:
                     self.err(d.span, "the problem names a second scene", "duplicate")
                     continue
                 scene_path = str((Path(f.path).parent / d.path))
+                scene_ref_span = d.span
                 from gnppdsl.ir.scene import OBJECT_KEYS, ROBOT_KEYS, load_scene_with_spans
 
                 scene, spans = load_scene_with_spans(scene_path, self.r, d.span)
@@ -1566,12 +1568,41 @@ class ProblemResolver:
                     if hint is not None:
                         self.err(kspan, f"unknown key '{key}' in '{entity}'", "unknown-key", hint)
         if scene is not None:
+            self.check_scene_objects(dom, objects, scene, scene_ref_span)
             for rb in reach:
                 if rb.robot not in scene.robots:
                     self.err(rb.span, f"reachability '{rb.name}': robot '{rb.robot}' is not in the scene",
                              "unknown-name", did_you_mean(rb.robot, scene.robots))
         return M.Problem(f.header.name.value, f.path, dom, objects, tuple(full), tuple(goal), settings,
                          tuple(relax), tuple(reach), scene_path, scene, f.header.span)
+
+
+    def check_scene_objects(self, dom: M.Domain, objects: dict[str, str], scene, span) -> None:
+        """Objects with a geometric role must be in the scene: robots of `joints(r)` variables
+        among its robots, objects with a frame or a continuous variable among its entries."""
+        probe = M.Problem("", "", dom, objects, (), ())
+        robots: dict[str, str] = {}
+        placed: dict[str, str] = {}
+        for c in dom.continuous.values():
+            for combo in probe.groundings(c.params):
+                for p, o in zip(c.params, combo):
+                    if c.space.kind == "joints" and p.name == c.space.robot:
+                        robots.setdefault(o, f"joints of '{c.name}'")
+                    else:
+                        placed.setdefault(o, f"a continuous variable '{c.name}'")
+        for o, t in objects.items():
+            if dom.frame_of(t) is not None:
+                placed.setdefault(o, f"a frame (type '{dom.frame_of(t).param.type}')")
+        where = f"scene {Path(scene.path).name}"
+        for o, why in robots.items():
+            if o not in scene.robots:
+                self.err(span, f"object '{o}' needs a robot in {where} ({why})", "scene-missing",
+                         did_you_mean(o, scene.robots) or "add it under `robots:`")
+        for o, why in placed.items():
+            if o not in robots and scene.entity(o) is None:
+                self.err(span, f"object '{o}' has no entry in {where} (it has {why})", "scene-missing",
+                         did_you_mean(o, list(scene.objects) + list(scene.robots))
+                         or "add it under `objects:` (or `robots:`)")
 
 
 def _fact(var: str, args) -> str:

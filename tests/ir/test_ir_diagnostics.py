@@ -634,3 +634,15 @@ def test_file_kinds(tmp_path):
     (tmp_path / "bad.pntc").write_bytes(b"domain d\ntype \xff\n")
     ds = check_files([str(tmp_path / "notes.txt"), str(tmp_path / "bad.pntc")]).reporter.diagnostics
     assert [d.kind for d in ds] == ["file-kind", "unreadable-file"]
+
+
+def test_objects_missing_from_the_scene(tmp_path):
+    scene = "dimension: 2\nobjects:\n  b1: {pose: [0, 0, 0]}\n  s1: {pose: [0, 0, 0]}\n"
+    d = check(tmp_path, "type arm\ncontinuous j(r: arm) : joints(r)\n",
+              problem=PROBLEM.replace("g : gripper }", "g : gripper  a : arm }") + 'scene "s.yaml"\n',
+              files={"s.yaml": scene})
+    msgs = sorted(x.message for x in d if x.kind == "scene-missing")
+    assert [(x.span.line, x.span.column) for x in d if x.kind == "scene-missing"] == [(5, 7)] * 3
+    assert msgs == ["object 'a' needs a robot in scene s.yaml (joints of 'j')",
+                    "object 'b2' has no entry in scene s.yaml (it has a continuous variable 'pose')",
+                    "object 'g' has no entry in scene s.yaml (it has a continuous variable 'q')"]
