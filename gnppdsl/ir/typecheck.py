@@ -531,6 +531,8 @@ def binary(ch: Checker, op: str, a: Expr, at: Ty, b: Expr, bt: Ty, span) -> tupl
         if ka == "joints" and kb in ("R", "joints") or kb == "joints" and ka == "R":
             return Call("mul", (a, b), span), _vec_result(at, bt)
         if ka == "any" and kb == "any":
+            if ch.s.open_world:        # unknown variables of a module checked on its own
+                return Call("mul", (a, b), span), ANY
             return ch.err(span, "cannot tell which '*' is meant for two 'value' operands",
                           hint="give the parameters a space (R, SE2, SE3, ...)")
         return ch.err(span, f"cannot multiply {at} by {bt}", "dimension",
@@ -589,6 +591,8 @@ def builtin_call(ch: Checker, name: str, args: list[tuple[Expr, Ty]], span):
             return r
         table = overloads[name]
         k = _kind(ts[0])
+        if k == "any" and ch.s.open_world:
+            return Call(name, xs, span), ANY
         if k in table:
             mono, rt = table[k]
             return Call(mono, xs, span), rt
@@ -603,6 +607,8 @@ def builtin_call(ch: Checker, name: str, args: list[tuple[Expr, Ty]], span):
         if (r := arity(2)) or (r := values_only()):
             return r
         k = _kind(ts[0])
+        if k == "any" and ch.s.open_world:
+            return Call(name, xs, span), (VAL(B.R(3)) if name == "axis" else ANY)
         if name == "axis":
             if fold_int(xs[1]) not in (0, 1, 2):
                 return ch.err(span, "the axis index must be the constant 0, 1 or 2")
