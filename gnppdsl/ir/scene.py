@@ -183,14 +183,16 @@ class _Loader:
         resolver, using the key positions recorded in `attr_spans`.)"""
         import yaml
 
-        self.attr_spans[(entity, key)] = self.span(key_node)
         if isinstance(val_node, yaml.SequenceNode):
             try:
-                return self.numbers(val_node, f"attribute '{key}'")
+                vals = self.numbers(val_node, f"attribute '{key}'")
             except _Bad:
                 return None
+            self.attr_spans[(entity, key)] = self.span(key_node)
+            return vals
         v = self.scalar(val_node)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
+            self.attr_spans[(entity, key)] = self.span(key_node)
             return float(v)
         self.unknown_key(key_node, key, known, what)
         return None
