@@ -184,3 +184,19 @@ def test_bad_settings_are_user_errors(scene):
         ReachabilityGraph.from_scene(scene, ReachSettings("nobody"), build=False)
     with pytest.raises(UserError, match="no frame"):
         ReachabilityGraph.from_scene(scene, ReachSettings("left_arm", frame="panda_hnd"), build=False)
+
+
+def test_isolated_node_is_replaced_by_connected_samples(scene, checker):
+    g = ReachabilityGraph.from_scene(scene, SETTINGS.merged(samples=16, seed=5))
+    w = g.nodes(SAMPLE)[0]
+    x = g.G.nodes[w]["x"].copy()
+    for v in list(g.G.neighbors(w)):
+        g.G.remove_edge(v, w)
+        g._invalid.add(frozenset((v, w)))
+    g._replace_isolated(w)
+    assert w not in g.G and g.stats.replaced_nodes == 1
+    new = g.nodes(ENHANCE)
+    assert new and all(g.G.degree(n) > 0 for n in new)
+    for n in new:
+        _assert_node_valid(g, n, checker)
+        assert np.linalg.norm(g.G.nodes[n]["x"] - x) < 5 * SETTINGS.enhance_sigma
