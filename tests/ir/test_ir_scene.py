@@ -235,7 +235,8 @@ def test_workspace_dimension(tmp_path):
 
 def test_broken_yaml(tmp_path):
     d = errors(tmp_path, "objects:\n  a: {pose: [0, 0, 0]\n  b: 1\n")
-    assert d[0].kind == "yaml" and d[0].span.line == 3
+    assert (d[0].kind, d[0].span.line, d[0].span.column) == ("yaml", 3, 3)
+    assert "expected ',' or '}'" in d[0].message
 
 
 def test_not_a_mapping_and_empty(tmp_path):
