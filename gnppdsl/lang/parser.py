@@ -596,6 +596,9 @@ def _grammar_signature() -> str:
     h.update((grammar_dir() / "pntc.lark").read_bytes())
     h.update(Path(__file__).read_bytes())
     h.update(Path(ast.__file__).read_bytes())
+    from gnppdsl.ir import expr
+
+    h.update(Path(expr.__file__).read_bytes())          # Span lives there
     return h.hexdigest()
 
 
