@@ -19,6 +19,9 @@ evaluation point; otherwise the fallback is used.
 """
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 # Layout of the callback output (all constants for casadi: their derivative is zero).
@@ -30,79 +33,131 @@ import numpy as np
 N_OUT = 24
 
 _PLANES: dict[int, tuple] = {}
+_KIND: dict[int, tuple] = {}
 
 
-def _cross(a, b) -> np.ndarray:
-    """np.cross without its axis handling (10x faster on 3-vectors; called per distance query)."""
-    return np.array((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
+# Small 3-vector helpers on Python floats: numpy costs ~1 us per call on 3-vectors, and this
+# runs once per distance query inside the NLP, so plain arithmetic is several times faster.
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def _planes(shape) -> tuple[np.ndarray, np.ndarray] | None:
-    """Outward unit face normals and offsets (n . p <= o inside) of a polytope shape, merged
-    when coplanar (a hull's faces come as triangles)."""
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def _norm(a) -> float:
+    return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+
+
+def _mv(R, v):
+    """R (rows) times v."""
+    return (_dot(R[0], v), _dot(R[1], v), _dot(R[2], v))
+
+
+def _mtv(R, v):
+    """R transposed times v."""
+    return (R[0][0] * v[0] + R[1][0] * v[1] + R[2][0] * v[2],
+            R[0][1] * v[0] + R[1][1] * v[1] + R[2][1] * v[2],
+            R[0][2] * v[0] + R[1][2] * v[1] + R[2][2] * v[2])
+
+
+def _perp_unit(a):
+    """A unit vector perpendicular to the unit vector a."""
+    ax = min(range(3), key=lambda i: abs(a[i]))
+    e = [0.0, 0.0, 0.0]
+    e[ax] = 1.0
+    u = _cross(a, e)
+    n = _norm(u)
+    return (u[0] / n, u[1] / n, u[2] / n)
+
+
+@dataclass
+class _Planes:
+    N: np.ndarray             # outward unit normals (m x 3)
+    O: np.ndarray             # offsets: n . p <= o inside
+    tol: float
+    normals: list             # the same as Python tuples
+    face_dirs: list           # per plane: two unit directions spanning it
+    side: np.ndarray          # planes with horizontal normals (planar extrusions)
+
+
+def _planes(shape) -> _Planes | None:
+    """Outward unit face normals and offsets of a polytope shape, merged when coplanar (a hull's
+    faces come as triangles); cached per shape object."""
     import coal
     key = id(shape)
     if key in _PLANES and _PLANES[key][0] is shape:
         return _PLANES[key][1]
     res = None
+    N = O = None
     if isinstance(shape, coal.Box):
         h = np.array(shape.halfSide)
-        N = np.vstack([np.eye(3), -np.eye(3)])
-        res = (N, np.r_[h, h])
+        N, O = np.vstack([np.eye(3), -np.eye(3)]), np.r_[h, h]
     elif hasattr(shape, "normals") and hasattr(shape, "points"):
-        N = np.array(shape.normals())
+        N0 = np.array(shape.normals())
         P = np.array(shape.points())
-        O = (P @ N.T).max(axis=0)          # convention-free offsets
+        O0 = (P @ N0.T).max(axis=0)          # convention-free offsets
         keep: list[int] = []
-        for i in range(len(N)):
-            if not any(np.dot(N[i], N[j]) > 1 - 1e-9 and abs(O[i] - O[j]) < 1e-9 for j in keep):
+        for i in range(len(N0)):
+            if not any(np.dot(N0[i], N0[j]) > 1 - 1e-9 and abs(O0[i] - O0[j]) < 1e-9 for j in keep):
                 keep.append(i)
-        res = (N[keep], O[keep])
+        N, O = N0[keep], O0[keep]
+    if N is not None:
+        normals = [tuple(map(float, n)) for n in N]
+        dirs = []
+        for n in normals:
+            u1 = _perp_unit(n)
+            dirs.append((u1, _cross(n, u1)))
+        res = _Planes(N, O, 1e-7 * max(1.0, float(np.abs(O).max())), normals, dirs, np.abs(N[:, 2]) < 1e-9)
     _PLANES[key] = (shape, res)
     return res
 
 
-def shape_feature(shape, p_local: np.ndarray, tol: float = 1e-7, planar: bool = False):
+def shape_feature(shape, p_local, planar: bool = False):
     """The active feature of `shape` at a boundary point (shape frame):
     ("face", [u1, u2]), ("edge", [e]), ("vertex", []), ("sphere", radius) or None (unsupported).
 
     `planar`: the shape is a z-extrusion moving in the plane, so only its side planes count and
     features lose their vertical direction: a side face acts as a 2-D edge ("edge", [horizontal
     direction]), a vertical edge as a 2-D vertex, and a z-aligned cylinder as a disc ("sphere")."""
-    import coal
-    if isinstance(shape, coal.Sphere):
-        return ("sphere", float(shape.radius))
-    if planar and isinstance(shape, coal.Cylinder):
-        return ("sphere", float(shape.radius))
+    kind = _KIND.get(id(shape))
+    if kind is None or kind[0] is not shape:
+        import coal      # isinstance on boost.python classes is slow: classify each shape once
+        kind = (shape, "sphere" if isinstance(shape, coal.Sphere) else
+                "cylinder" if isinstance(shape, coal.Cylinder) else "other",
+                float(getattr(shape, "radius", 0.0)))
+        _KIND[id(shape)] = kind
+    if kind[1] == "sphere" or (planar and kind[1] == "cylinder"):
+        return ("sphere", kind[2])
     pl = _planes(shape)
     if pl is None:
         return None
-    N, O = pl
-    near = np.abs(N @ p_local - O) < tol * max(1.0, float(np.abs(O).max()))
+    near = np.abs(pl.N @ np.asarray(p_local) - pl.O) < pl.tol
     if planar:
-        near &= np.abs(N[:, 2]) < 1e-9          # side planes only
-        normals = N[near]
-        if len(normals) == 0:
-            return None
-        if len(normals) == 1:
-            return ("edge", [np.array((-normals[0][1], normals[0][0], 0.0))])
-        return ("vertex", [])
-    active = np.nonzero(near)[0]
+        near &= pl.side                         # side planes only
+    active = np.flatnonzero(near)
     if len(active) == 0:
         return None
-    normals = N[active]
+    if planar:
+        if len(active) == 1:
+            n = pl.normals[active[0]]
+            return ("edge", [(-n[1], n[0], 0.0)])
+        return ("vertex", [])
     if len(active) == 1:
-        n = normals[0]
-        a = np.eye(3)[np.argmin(np.abs(n))]
-        u1 = _cross(n, a)
-        u1 /= np.linalg.norm(u1)
-        return ("face", [u1, _cross(n, u1)])
+        return ("face", list(pl.face_dirs[active[0]]))
     # two or more planes: an edge if they all share one direction, else a vertex
-    e = _cross(normals[0], normals[1])
-    if np.linalg.norm(e) < 1e-9:
+    n0, n1 = pl.normals[active[0]], pl.normals[active[1]]
+    e = _cross(n0, n1)
+    ne = _norm(e)
+    if ne < 1e-9:
         return None
-    e /= np.linalg.norm(e)
-    if all(abs(np.dot(n, e)) < 1e-7 for n in normals[2:]):
+    e = (e[0] / ne, e[1] / ne, e[2] / ne)
+    if all(abs(_dot(pl.normals[i], e)) < 1e-7 for i in active[2:]):
         return ("edge", [e])
     return ("vertex", [])
 
@@ -113,77 +168,73 @@ def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb, planar
     Ma, Mb: 4x4 shape placements in the body frames; (RA, pA), (RB, pB): body world poses;
     d, n, wa, wb: coal's distance, normal (A to B) and world witness points. `planar`: both
     bodies are z-extrusions moving in the plane z = 0 (`sdist2`)."""
-    out = np.zeros(N_OUT)
-    la = RA.T @ (wa - pA)                 # witness points in the body frames
-    lb = RB.T @ (wb - pB)
-    if planar:                            # same height for both: the model is the 2-D distance
-        la[2] = lb[2] = 0.0
+    RA_, RB_ = RA.tolist(), RB.tolist()
+    pA_, pB_, n_ = pA.tolist(), pB.tolist(), n.tolist()
+    la = _mtv(RA_, _sub(wa.tolist(), pA_))      # witness points in the body frames
+    lb = _mtv(RB_, _sub(wb.tolist(), pB_))
+    # fallback layout unless the feature model reproduces d (safe non-parallel default directions)
+    out = [0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
+           0.0, 0.0, n_[0], n_[1], n_[2]]
+    RMa, RMb = Ma[:3, :3].tolist(), Mb[:3, :3].tolist()
+    tMa, tMb = Ma[:3, 3].tolist(), Mb[:3, 3].tolist()
+    fa = shape_feature(shape_a, _mtv(RMa, _sub(la, tMa)), planar)
+    fb = shape_feature(shape_b, _mtv(RMb, _sub(lb, tMb)), planar)
+    if planar:                                  # same height for both: the model is the 2-D distance
+        la, lb = (la[0], la[1], 0.0), (lb[0], lb[1], 0.0)
     out[5:8], out[8:11] = la, lb
-    out[21:24] = n
-    out[3] = 1.0                          # fallback unless the feature model reproduces d
-    out[4] = 1.0
-    out[11:14], out[14:17] = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)   # safe defaults (non-parallel)
-    fa = shape_feature(shape_a, Ma[:3, :3].T @ (RA.T @ (wa - pA) - Ma[:3, 3]), planar=planar)
-    fb = shape_feature(shape_b, Mb[:3, :3].T @ (RB.T @ (wb - pB) - Mb[:3, 3]), planar=planar)
     if fa is None or fb is None:
-        return out
+        return np.array(out)
     ra = rb = 0.0
-    dirs: list[tuple[np.ndarray, int]] = []   # (direction in the owner's body frame, owner)
-    for f, M, owner in ((fa, Ma, 0), (fb, Mb, 1)):
-        kind, data = f
+    dirs = []                                   # (direction in the owner's body frame, owner)
+    for (kind, data), RM, tM, owner in ((fa, RMa, tMa, 0), (fb, RMb, tMb, 1)):
         if kind == "sphere":
-            c = M[:3, 3].copy()
-            if planar:
-                c[2] = 0.0
+            c = (tM[0], tM[1], 0.0 if planar else tM[2])
             if owner == 0:
-                ra, out[5:8] = data, c
+                ra, la = data, c
             else:
-                rb, out[8:11] = data, c
+                rb, lb = data, c
         else:
-            dirs += [(M[:3, :3] @ u, owner) for u in data]
+            dirs += [(_mv(RM, u), owner) for u in data]
     if len(dirs) > 2:                           # face-face / face-edge (parallel): keep a face
         face_owner = 0 if fa[0] == "face" else 1
         dirs = [t for t in dirs if t[1] == face_owner][:2]
-    R = (RA, RB)
-    wA_w = RA @ out[5:8] + pA
-    wB_w = RB @ out[8:11] + pB
-    v = wB_w - wA_w
+    R = (RA_, RB_)
+    v = _sub(_sub(_mv(RB_, lb), _mv(RA_, la)), _sub(pA_, pB_))     # wB - wA (world)
+    mode = -1
     if len(dirs) == 2:
-        u1, u2 = R[dirs[0][1]] @ dirs[0][0], R[dirs[1][1]] @ dirs[1][0]
-        c = _cross(u1, u2)
-        if np.linalg.norm(c) < 1e-6:            # parallel edges: distance between lines = point-line
+        c = _cross(_mv(R[dirs[0][1]], dirs[0][0]), _mv(R[dirs[1][1]], dirs[1][0]))
+        nc = _norm(c)
+        if nc < 1e-6:                           # parallel edges: distance between lines = point-line
             dirs = dirs[:1]
         else:
-            nm = c / np.linalg.norm(c)
-            s = 1.0 if np.dot(nm, n) >= 0 else -1.0
-            val = s * np.dot(nm, v) - ra - rb
+            s = 1.0 if _dot(c, n_) >= 0 else -1.0
+            val = s * _dot(c, v) / nc - ra - rb
             mode = 0
     if len(dirs) == 1:
-        e = R[dirs[0][1]] @ dirs[0][0]
-        perp = v - np.dot(e, v) * e
+        e = _mv(R[dirs[0][1]], dirs[0][0])
+        ev = _dot(e, v)
         s = 1.0 if d + ra + rb >= 0 else -1.0
-        val = s * np.linalg.norm(perp) - ra - rb
+        val = s * _norm((v[0] - ev * e[0], v[1] - ev * e[1], v[2] - ev * e[2])) - ra - rb
         mode = 1
     elif len(dirs) == 0:
         s = 1.0 if d + ra + rb >= 0 else -1.0
-        val = s * np.linalg.norm(v) - ra - rb
+        val = s * _norm(v) - ra - rb
         mode = 2
-    if abs(val - d) > 1e-7 * max(1.0, abs(d)):
-        return out                              # feature detection disagrees with coal: fallback
-    out[0:4] = 0.0
+    if mode < 0 or abs(val - d) > 1e-7 * max(1.0, abs(d)):
+        return np.array(out)                    # feature detection disagrees with coal: fallback
+    out[0:4] = [0.0, 0.0, 0.0, 0.0]
     out[mode] = 1.0
     out[4] = s
+    out[5:8], out[8:11] = la, lb
     if dirs:
         out[11:14], out[17] = dirs[0][0], dirs[0][1]
         out[18] = dirs[0][1]
         if len(dirs) == 2:
             out[14:17], out[18] = dirs[1][0], dirs[1][1]
         else:   # unused second direction: keep u1 x u2 away from zero (no 0/0 in unused branches)
-            a = np.eye(3)[np.argmin(np.abs(dirs[0][0]))]
-            w = _cross(dirs[0][0], a)
-            out[14:17] = w / np.linalg.norm(w)
+            out[14:17] = _perp_unit(dirs[0][0])
     out[19], out[20] = ra, rb
-    return out
+    return np.array(out)
 
 
 def model_expression(o, RA, pA, RB, pB):
