@@ -152,8 +152,11 @@ class GeometryContext:
 
     # -- protocol: numeric (pinocchio + coal directly) --------------------------------------------
     def fk_numeric(self, robot: str, q: np.ndarray, frame: str, base: np.ndarray) -> np.ndarray:
-        from gnppdsl.geometry.robots import matrix_to_se3
-        return matrix_to_se3(self.fk_matrix(robot, q, frame, base))
+        """Pinocchio forward kinematics; the quaternion uses the same branch (and sign) convention
+        as the casadi `fk`, so both paths give the same 7-vector."""
+        from gnppdsl.geometry.kinematics import rotation_to_quat_numeric
+        T = self.fk_matrix(robot, q, frame, base)
+        return np.r_[T[:3, 3], rotation_to_quat_numeric(T[:3, :3])]
 
     def fk_matrix(self, robot: str, q: np.ndarray, frame: str, base: np.ndarray | None = None) -> np.ndarray:
         """4x4 world placement of a frame computed by pinocchio (not casadi)."""

@@ -81,6 +81,26 @@ def rotation_to_quat(R):
     return ca.if_else(use_w, branch_w(), ca.if_else(use_x, branch_x(), ca.if_else(use_y, branch_y(), branch_z())))
 
 
+def rotation_to_quat_numeric(R) -> np.ndarray:
+    """numpy twin of `rotation_to_quat` (same branches, same signs), so the numeric checker and
+    the casadi path report the same quaternion for the same rotation."""
+    R = np.asarray(R, dtype=float)
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    d0, d1, d2 = R[0, 0], R[1, 1], R[2, 2]
+    eps = 1e-12
+    if tr >= d0 and tr >= d1 and tr >= d2:
+        w = np.sqrt(max(1 + tr, eps)) / 2
+        return np.array([(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w), w])
+    if d0 >= d1 and d0 >= d2:
+        x = np.sqrt(max(1 + d0 - d1 - d2, eps)) / 2
+        return np.array([x, (R[0, 1] + R[1, 0]) / (4 * x), (R[0, 2] + R[2, 0]) / (4 * x), (R[2, 1] - R[1, 2]) / (4 * x)])
+    if d1 >= d2:
+        y = np.sqrt(max(1 - d0 + d1 - d2, eps)) / 2
+        return np.array([(R[0, 1] + R[1, 0]) / (4 * y), y, (R[1, 2] + R[2, 1]) / (4 * y), (R[0, 2] - R[2, 0]) / (4 * y)])
+    z = np.sqrt(max(1 - d0 - d1 + d2, eps)) / 2
+    return np.array([(R[0, 2] + R[2, 0]) / (4 * z), (R[1, 2] + R[2, 1]) / (4 * z), z, (R[1, 0] - R[0, 1]) / (4 * z)])
+
+
 def se3_vec_to_rp(v):
     """[x, y, z, qx, qy, qz, qw] -> (R, p)."""
     return quat_to_rotation(v[3:7]), v[0:3]

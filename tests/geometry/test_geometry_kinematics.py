@@ -9,7 +9,8 @@ import pinocchio as pin
 import pytest
 
 from gnppdsl.errors import UserError
-from gnppdsl.geometry.kinematics import fk_function, fk_rp_function, quat_to_rotation, rotation_to_quat
+from gnppdsl.geometry.kinematics import (fk_function, fk_rp_function, quat_to_rotation, rotation_to_quat,
+                                         rotation_to_quat_numeric)
 from gnppdsl.geometry.robots import load_robot, matrix_to_se3, se3_to_matrix
 from gnppdsl.ir.scene_model import SceneRobot
 
@@ -122,3 +123,17 @@ def test_bad_inputs_raise_user_errors():
     robot = load_robot(ROBOTS["panda"][0])
     with pytest.raises(UserError, match="no frame"):
         fk_function(robot, "panda_link99")
+
+
+def test_numeric_quaternion_twin_matches_casadi():
+    """Same rotation -> the same quaternion (sign included) from casadi and from numpy, in every
+    branch, including 180-degree rotations (a Panda top grasp)."""
+    R = ca.SX.sym("R", 3, 3)
+    f = ca.Function("f", [R], [rotation_to_quat(R)])
+    rng = np.random.default_rng(4)
+    mats = [se3_to_matrix(np.r_[0, 0, 0, q])[:3, :3] for q in rng.normal(size=(300, 4))]
+    mats += [np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0]), np.eye(3)]
+    for M in mats:
+        q = rotation_to_quat_numeric(M)
+        np.testing.assert_allclose(np.array(f(M)).ravel(), q, atol=1e-12)
+        np.testing.assert_allclose(se3_to_matrix(np.r_[0, 0, 0, q])[:3, :3], M, atol=1e-12)
