@@ -82,6 +82,7 @@ class ReachabilityGraph:
         self.rng = np.random.default_rng(settings.seed)
         self._invalid: set[frozenset] = set()   # edges that failed a check: never re-added
         self._next_id = 0
+        self._n_samples = 0
         self._ids: list[int] = []
         self._X: np.ndarray = np.zeros((0, 3))
         self._lo = np.asarray(settings.workspace[0], dtype=float)
@@ -128,7 +129,8 @@ class ReachabilityGraph:
 
     @property
     def num_samples(self) -> int:
-        return sum(1 for _, k in self.G.nodes(data="kind") if k == SAMPLE)
+        """Pre-built (uniformly sampled) nodes currently in the graph."""
+        return self._n_samples
 
     def _validate(self, x, extra_seeds=()) -> NodeValidation | None:
         seeds = list(extra_seeds)
@@ -143,11 +145,13 @@ class ReachabilityGraph:
         self._next_id += 1
         self.G.add_node(nid, x=np.asarray(v.x, dtype=float), q=np.asarray(v.q, dtype=float), c=float(v.cost), kind=kind)
         self._ids.append(nid)
+        self._n_samples += kind == SAMPLE
         self._X = np.vstack([self._X, np.asarray(v.x, dtype=float)[None, :]])
         return nid
 
     def _remove_node(self, nid: int) -> None:
         i = self._ids.index(nid)
+        self._n_samples -= self.G.nodes[nid]["kind"] == SAMPLE
         self._ids.pop(i)
         self._X = np.delete(self._X, i, axis=0)
         self.G.remove_node(nid)
@@ -265,12 +269,17 @@ class ReachabilityGraph:
         return None
 
     def attach_position(self, x) -> int | None:
-        """A node at end-effector position x (existing, or IK-solved and connected with checked
-        edges, enhanced if it cannot connect); None if x is unreachable."""
+        """A node at end-effector position x (an existing one at x or within `snap_radius`, or a
+        new IK-solved one connected with checked edges, enhanced if it cannot connect); None if
+        x is unreachable."""
         x = np.asarray(x, dtype=float).ravel()
         u = self._find(x=x)
         if u is not None:
             return u
+        if self.settings.snap_radius > 0:
+            near = self.nearest(x, 1)
+            if near and np.linalg.norm(self.G.nodes[near[0]]["x"] - x) <= self.settings.snap_radius:
+                return near[0]
         v = self._validate(x)
         if v is None:
             return None

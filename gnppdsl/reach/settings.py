@@ -8,7 +8,7 @@ everything else keeps its default.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from gnppdsl.errors import UserError
 
@@ -37,6 +37,8 @@ class ReachSettings:
     enhance_rounds / enhance_samples / enhance_sigma / enhance_decay
                    Gaussian enhancement (Sec. IV-B2): rounds with `enhance_samples` draws each,
                    standard deviation `enhance_sigma` (m) shrinking by `enhance_decay` per round
+    snap_radius    a query end within this distance (m) of an existing node uses that node
+                   instead of a new IK-solved one (0: only exact matches)
     seed           all randomness (uniform draws, IK restarts, enhancement) comes from it
     """
 
@@ -58,8 +60,8 @@ class ReachSettings:
     enhance_samples: int = 6
     enhance_sigma: float = 0.15
     enhance_decay: float = 0.6
+    snap_radius: float = 0.0
     seed: int = 0
-    extra: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
         lo, hi = self.workspace

@@ -200,3 +200,13 @@ def test_isolated_node_is_replaced_by_connected_samples(scene, checker):
     for n in new:
         _assert_node_valid(g, n, checker)
         assert np.linalg.norm(g.G.nodes[n]["x"] - x) < 5 * SETTINGS.enhance_sigma
+
+
+def test_snap_radius_reuses_a_nearby_node(scene):
+    g = ReachabilityGraph.from_scene(scene, SETTINGS.merged(samples=8, snap_radius=0.05))
+    x = g.G.nodes[0]["x"] + np.array([0.01, 0.0, 0.0])
+    n = g.G.number_of_nodes()
+    assert g.attach_position(x) == 0 and g.G.number_of_nodes() == n
+    exact = ReachabilityGraph.from_scene(scene, SETTINGS.merged(samples=8))
+    u = exact.attach_position(x)
+    assert u not in (None, 0) and np.allclose(exact.G.nodes[u]["x"], x)
