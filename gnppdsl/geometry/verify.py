@@ -352,3 +352,18 @@ def check_state(ctx_or_scene, state: dict[str, Any], margin: float = 0.0, ignore
             lims += joint_limit_violations(ctx, name, q)
     return StateReport(dists, lims, margin)
 
+
+
+def check_states(ctx_or_scene, states: list[dict[str, Any]], margin: float = 0.0,
+                 ignore: Iterable[Iterable[str]] = (), models=None) -> list[StateReport]:
+    """`check_state` for a sequence (keyframes, or the waypoints of a trajectory)."""
+    ctx = _as_ctx(ctx_or_scene, models)
+    return [check_state(ctx, st, margin, ignore) for st in states]
+
+
+def first_violation(reports: list[StateReport]) -> tuple[int, StateReport] | None:
+    """Index and report of the first state that collides or leaves its joint limits."""
+    for i, r in enumerate(reports):
+        if not r.ok:
+            return i, r
+    return None

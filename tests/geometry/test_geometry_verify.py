@@ -105,3 +105,14 @@ def test_planar_scene():
     d = {(p.a, p.b): p.distance for p in verify.pair_distances(g, {"g": (0.3, 0.2, 0)})}
     assert abs(d[("c2", "g")] - (0.2 - 0.09)) < 1e-6
     assert verify.point_in_gripper(g, "g", (0.3, 0.01, 0.0), (0.3, 0.0), half_extents=(0.02, 0.02)).inside
+
+
+def test_trajectory_check_finds_the_colliding_waypoint(ctx):
+    """b2 slides along x through b1 (at x = 0.5, y = 0.1): waypoints within 5 cm of it collide."""
+    xs = np.linspace(0.2, 0.8, 13)
+    states = [{"b2": (x, 0.1, 0.025, 0, 0, 0, 1)} for x in xs]
+    reps = verify.check_states(ctx, states, margin=0.0, ignore=[("b1", "table"), ("b2", "table")])
+    colliding = [i for i, r in enumerate(reps) if not r.ok]
+    assert colliding == [i for i, x in enumerate(xs) if abs(x - 0.5) < 0.05 - 1e-9]
+    i, r = verify.first_violation(reps)
+    assert i == colliding[0] and ("b1", "b2") == (r.collisions[0].a, r.collisions[0].b)
