@@ -119,6 +119,7 @@ class GraphNLPFactory:
         self.obj_order = {name: k for k, name in enumerate(problem.objects)}
         self._vars: dict[tuple, VarInstance] = {}
         self._memo: tuple | None = None        # last (states, factors): variables() reuses it
+        self._cache: dict[tuple, list] = {}     # see _cached_instance
 
     # ---- public API --------------------------------------------------------------------
     def factors(self, states: Sequence[Sequence[int]]) -> list[FactorInstance]:
@@ -138,17 +139,53 @@ class GraphNLPFactory:
         n = len(states) - 1
         out: list[FactorInstance] = []
         for i in range(n + 1):
-            for gr in self.rules:
+            for r, gr in enumerate(self.rules):
                 if gr.span == 2:
                     if i == n or not (gr.pre.holds_in(states[i]) and gr.post.holds_in(states[i + 1])):
                         continue
                 elif not gr.pre.holds_in(states[i]):
                     continue
-                for call in gr.calls:
-                    fi = self._instantiate(gr, call, states, i)
+                for c, call in enumerate(gr.calls):
+                    fi = self._cached_instance(r, c, gr, call, states, i)
                     if fi is not None:
                         out.append(fi)
         return out
+
+    def _cached_instance(self, r: int, c: int, gr: GroundRule, call, states, i) -> FactorInstance | None:
+        """Reuse a resolution made at any step of any earlier state sequence.
+
+        Sound because resolving a call reads the symbolic states only through `_object`,
+        which records every fact it reads: if those facts hold again (relative to step i), the
+        resolution takes exactly the same path and yields the same body with variables shifted
+        in time (this is factor time-invariance, Property 4.2, used as a cache). The flags
+        `i == n`, `i == n - 1` decide whether trajectory variables exist at i and i+1."""
+        n = len(states) - 1
+        key = (r, c, i == n, i == n - 1)
+        entries = self._cache.setdefault(key, [])
+        s0, s1 = states[i], (states[i + 1] if i < n else None)
+        for c0, c1, result in entries:
+            if all(s0[v] == x for v, x in c0) and all(s1[v] == x for v, x in c1):
+                return self._at_step(gr, call, result, c0, c1, i)
+        acc = _Factor()
+        result = self._instantiate(gr, call, states, i, acc)
+        c0 = tuple(acc.consulted[0].items())
+        c1 = tuple(acc.consulted[1].items())
+        if len(entries) < 256:
+            entries.append((c0, c1, result))
+        return self._at_step(gr, call, result, c0, c1, i)
+
+    def _at_step(self, gr: GroundRule, call, result, c0, c1, i) -> FactorInstance | None:
+        if result is None:
+            return None
+        template, rel_keys, body = result
+        pre = gr.pre.union(PartialState.of(c0))
+        generator = (pre,)
+        if gr.span == 2:
+            generator = (pre, gr.post.union(PartialState.of(c1)))
+        variables = tuple(self._var_instance((name, args, rel + i), call) for name, args, rel in rel_keys)
+        return FactorInstance(template=template, rule=gr.name, bindings=gr.binding,
+                              tags=frozenset(call.tags), step=i, span=gr.span,
+                              generator=generator, variables=variables, body=body)
 
     def variables(self, states: Sequence[Sequence[int]],
                   factors: Sequence[FactorInstance] | None = None) -> list[VarInstance]:
@@ -171,7 +208,9 @@ class GraphNLPFactory:
         return list(point) * reps
 
     # ---- factor instantiation ----------------------------------------------------------
-    def _instantiate(self, gr: GroundRule, call: m.TemplateCall, states, i) -> FactorInstance | None:
+    def _instantiate(self, gr: GroundRule, call: m.TemplateCall, states, i, acc: "_Factor"):
+        """Resolve one template call at step i: (template, variable keys relative to i, body),
+        or None if it needs a trajectory beyond the last motion. Reads recorded in `acc`."""
         tpl = self.domain.templates.get(call.template)
         where = f"rule {gr.name} ({', '.join(f'{k}={v}' for k, v in gr.binding)}) at step {i}"
         if tpl is None:
@@ -179,7 +218,6 @@ class GraphNLPFactory:
         if len(tpl.params) != len(call.args):
             raise UserError(located(call.span, f"{tpl.name} takes {len(tpl.params)} arguments, "
                                     f"got {len(call.args)}"))
-        acc = _Factor()
         rule_ctx = _Ctx(states, i, where=where)
         params: dict = {}
         try:
@@ -195,14 +233,7 @@ class GraphNLPFactory:
         if gr.span == 1 and acc.consulted[1]:
             raise UserError(located(call.span, f"{where}: a single-state rule cannot use the next "
                                     f"step (')"))
-        pre = gr.pre.union(PartialState.of(acc.consulted[0]))
-        generator = (pre,)
-        if gr.span == 2:
-            generator = (pre, gr.post.union(PartialState.of(acc.consulted[1])))
-        variables = tuple(self._var_instance(key, call) for key in acc.slots)
-        return FactorInstance(template=tpl.name, rule=gr.name, bindings=gr.binding,
-                              tags=frozenset(call.tags), step=i, span=gr.span,
-                              generator=generator, variables=variables, body=body)
+        return tpl.name, tuple((name, args, step - i) for name, args, step in acc.slots), body
 
     def _statements(self, stmts, ctx: _Ctx, acc: _Factor):
         for st in stmts:

@@ -134,7 +134,8 @@ def test_factor_time_invariance():
     # satisfies its generator at step 0
     f = next(f for f in factors if f.rule == "switch" and f.step == 2)
     short = [tuple(states[2]), tuple(states[3])]
-    g = next(x for x in fac.factors(short) if x.rule == "switch" and x.bindings == f.bindings)
+    fresh = GraphNLPFactory(problem, task)           # no cache shared with `fac`
+    g = next(x for x in fresh.factors(short) if x.rule == "switch" and x.bindings == f.bindings)
     assert g.body == f.body and g.generator == f.generator
     assert [(v.kind, v.args, v.step + 2) for v in g.variables] == [(v.kind, v.args, v.step) for v in f.variables]
 
@@ -182,3 +183,22 @@ def test_inapplicable_plan_is_a_user_error():
         plan_states(task, parse_plan(task, "place(b1, g, r1)"))
     with pytest.raises(UserError, match="unknown or statically inapplicable action 'fly\\(b1\\)'"):
         parse_plan(task, "fly(b1)")
+
+
+def test_cache_across_plans_gives_the_same_factors_as_fresh_factories():
+    """The factory reuses resolutions whose consulted facts hold again (any step, any plan);
+    random walks through p5 (handover) must give exactly what a fresh factory computes."""
+    import random
+
+    from gnppdsl.compile.semantics import applicable, initial_state, successor
+
+    problem = planar_ir.problem("p5", with_traj=True)
+    task = build_task(problem)
+    shared = GraphNLPFactory(problem, task)
+    rng = random.Random(0)
+    for _ in range(12):
+        states = [initial_state(task)]
+        for _ in range(rng.randint(0, 6)):
+            ops = [op for op in task.operators if applicable(op, states[-1])]
+            states.append(successor(task, states[-1], rng.choice(ops)))
+        assert shared.factors(states) == GraphNLPFactory(problem, task).factors(states)
