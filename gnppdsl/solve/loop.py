@@ -517,12 +517,22 @@ class _Run:
                 if search.subgraph is not None:
                     found = search.subgraph
                     break
-            sub = found if found is not None else g_r
-            if found is None and not isinstance(verdict, bool):
-                # components all feasible, the whole infeasible: trust the whole (multi-start verdict)
-                self.say("  components feasible but the whole relaxation infeasible; using the whole")
-            elif found is None:
-                return ("inconsistent", "the database's infeasible verdict was not reproduced")
+            if found is None:
+                # Every component is feasible, so G_r is (Property 4.5): the solver missed the
+                # joint solution. The union of the components' solutions is one; never turn a
+                # failed solve into a conflict.
+                self.say(f"  {g_r.name}: components feasible, the whole solve failed; joining the components")
+                values: dict = {}
+                for comp in comps:
+                    r = checker.solve(comp)
+                    if not r.feasible:
+                        return ("inconsistent", f"{comp.name} is feasible and infeasible in two solves")
+                    values.update(r.values)
+                if rule is None:
+                    return ("solution", values)
+                checker.values.update(values)
+                continue
+            sub = found
             if "n" in sw:
                 sub = self.shrink(sub, checker)
             return ("conflict", tuple(sub.factor_instances), rule.name if rule is not None else "")
