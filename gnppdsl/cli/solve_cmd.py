@@ -42,6 +42,11 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--time-limit must be positive")
     if args.max_horizon is not None and args.max_horizon < 0:
         raise UserError("--max-horizon must be >= 0")
+    from pathlib import Path
+
+    for opt, value in (("--json", args.json), ("--db", args.db)):
+        if value is not None and not Path(value).resolve().parent.is_dir():
+            raise UserError(f"{opt} {value}: directory {Path(value).resolve().parent} does not exist")
     compiled = load_and_compile(args.paths)
     options = SolveOptions.from_settings(
         compiled.problem.settings,
