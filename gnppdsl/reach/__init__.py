@@ -1,6 +1,6 @@
 """gnppdsl.reach: the reachability graph of R-LGP (paper 002, Sec. IV).
 
-Modules (import them directly; this package imports nothing heavy):
+Modules (imported on demand, so `import gnppdsl.reach` stays cheap):
 - `settings`: `ReachSettings` (robot, frame, workspace, samples, k, Eq. 3 weights, L, IK, seed)
 - `collision`: `CollisionChecker` (one robot vs the static scene, pinocchio + coal)
 - `ik_validation`: `validate_position` (Eq. 2: g_prec, position IK, collision rejection)
@@ -9,4 +9,32 @@ Modules (import them directly; this package imports nothing heavy):
   Gaussian enhancement; `path`, `travel_cost`, `query`, `query_configs`)
 - `integration`: `build_from_problem`, `operator_targets`, `heuristic_pair_costs`,
   `warmstart_waypoints` (what the solve loop calls; Alg. 1's heuristicCost and getWaypoints)
+
+Typical use by the solve loop (R-LGP, `algorithm = rlgp`):
+
+    graph = build_from_problem(problem)                      # once per problem
+    task.pair_costs = heuristic_pair_costs(task, operator_targets(problem, task), graph)
+    planner = IncrementalPlanner(task); plan = planner.optimal_plan(horizon)
+    init = warmstart_waypoints(graph, q_i, q_next, waypoints)   # per `warmstart path(r)` phase
 """
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "ReachSettings": "gnppdsl.reach.settings",
+    "ReachabilityGraph": "gnppdsl.reach.graph",
+    "build_from_problem": "gnppdsl.reach.integration",
+    "operator_targets": "gnppdsl.reach.integration",
+    "heuristic_pair_costs": "gnppdsl.reach.integration",
+    "pair_costs_from_problem": "gnppdsl.reach.integration",
+    "warmstart_waypoints": "gnppdsl.reach.integration",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module 'gnppdsl.reach' has no attribute {name!r}")
