@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.compile.ground import GroundRule, ground_rules, located, var_name
+from gnppdsl.compile.ground import GroundRule, ground_rules, error_at, var_name
 from gnppdsl.compile.sas import PartialState, SASTask
 from gnppdsl.compile.semantics import derive
 from gnppdsl.errors import UserError
@@ -214,10 +214,10 @@ class GraphNLPFactory:
         tpl = self.domain.templates.get(call.template)
         where = f"rule {gr.name} ({', '.join(f'{k}={v}' for k, v in gr.binding)}) at step {i}"
         if tpl is None:
-            raise UserError(located(call.span, f"unknown template '{call.template}' ({where})"))
+            raise error_at(call.span, f"unknown template '{call.template}' ({where})")
         if len(tpl.params) != len(call.args):
-            raise UserError(located(call.span, f"{tpl.name} takes {len(tpl.params)} arguments, "
-                                    f"got {len(call.args)}"))
+            raise error_at(call.span, f"{tpl.name} takes {len(tpl.params)} arguments, "
+                                    f"got {len(call.args)}")
         rule_ctx = _Ctx(states, i, where=where)
         params: dict = {}
         try:
@@ -231,8 +231,8 @@ class GraphNLPFactory:
         except _Skip:
             return None
         if gr.span == 1 and acc.consulted[1]:
-            raise UserError(located(call.span, f"{where}: a single-state rule cannot use the next "
-                                    f"step (')"))
+            raise error_at(call.span, f"{where}: a single-state rule cannot use the next "
+                                    f"step (')")
         return tpl.name, tuple((name, args, step - i) for name, args, step in acc.slots), body
 
     def _statements(self, stmts, ctx: _Ctx, acc: _Factor):
@@ -246,13 +246,13 @@ class GraphNLPFactory:
                 for k in range(lo, hi + 1):
                     yield from self._statements(st.body, ctx.child(iters={**ctx.iters, st.var: k}), acc)
             else:
-                raise UserError(located(getattr(st, "span", None), f"unsupported statement {st!r}"))
+                raise error_at(getattr(st, "span", None), f"unsupported statement {st!r}")
 
     def _int(self, e, ctx, acc) -> int:
         r = self._resolve(e, ctx, acc)
         if not isinstance(r, Num) or r.value != int(r.value):
-            raise UserError(located(getattr(e, "span", None), f"{ctx.where}: a forall bound or "
-                                    f"index must be an integer constant"))
+            raise error_at(getattr(e, "span", None), f"{ctx.where}: a forall bound or "
+                                    f"index must be an integer constant")
         return int(r.value)
 
     # ---- objects and state values ------------------------------------------------------
@@ -263,23 +263,23 @@ class GraphNLPFactory:
             v = ctx.params.get(e.name)
             if isinstance(v, str):
                 return v
-            raise UserError(located(e.span, f"{ctx.where}: '{e.name}' is not an object"))
+            raise error_at(e.span, f"{ctx.where}: '{e.name}' is not an object")
         if isinstance(e, StateValue):
             off = ctx.offset + (1 if e.next else 0)
             if off > 1:
-                raise UserError(located(e.span, f"{ctx.where}: `'` inside `'` refers to step i+2"))
+                raise error_at(e.span, f"{ctx.where}: `'` inside `'` refers to step i+2")
             step = ctx.step + off
             if step >= len(ctx.states):
-                raise UserError(located(e.span, f"{ctx.where}: uses step {step} beyond the last state"))
+                raise error_at(e.span, f"{ctx.where}: uses step {step} beyond the last state")
             args = [self._object(a, ctx, acc) for a in e.args]
             name = var_name(e.name, args)
             v = self.index.get(name)
             if v is None:
-                raise UserError(located(e.span, f"{ctx.where}: no state variable {name}"))
+                raise error_at(e.span, f"{ctx.where}: no state variable {name}")
             val = ctx.states[step][v]
             acc.consulted[off][v] = val
             return self.task.variables[v].values[val]
-        raise UserError(located(getattr(e, "span", None), f"{ctx.where}: expected an object, got {e!r}"))
+        raise error_at(getattr(e, "span", None), f"{ctx.where}: expected an object, got {e!r}")
 
     # ---- expressions -------------------------------------------------------------------
     def _resolve(self, e, ctx: _Ctx, acc: _Factor):
@@ -294,12 +294,12 @@ class GraphNLPFactory:
             if isinstance(v, str):
                 return Obj(v, span=e.span)
             if v is None:
-                raise UserError(located(e.span, f"{ctx.where}: unbound parameter '{e.name}'"))
+                raise error_at(e.span, f"{ctx.where}: unbound parameter '{e.name}'")
             # a value argument: resolve the caller's expression (it has no template params)
             return self._resolve(v[1], ctx.child(params={}, iters={}), acc)
         if isinstance(e, IterVar):
             if e.name not in ctx.iters:
-                raise UserError(located(e.span, f"{ctx.where}: unknown index '{e.name}'"))
+                raise error_at(e.span, f"{ctx.where}: unknown index '{e.name}'")
             return Num(ctx.iters[e.name], span=e.span)
         if isinstance(e, CVar):
             key = self._cvar_key(e, ctx, acc)
@@ -317,20 +317,20 @@ class GraphNLPFactory:
             return self._index(e, ctx, acc)
         if isinstance(e, Call):
             return self._call(e, ctx, acc)
-        raise UserError(located(getattr(e, "span", None), f"{ctx.where}: cannot resolve {e!r}"))
+        raise error_at(getattr(e, "span", None), f"{ctx.where}: cannot resolve {e!r}")
 
     def _cvar_key(self, e: CVar, ctx: _Ctx, acc: _Factor, check: bool = True) -> tuple:
         cont = self.domain.continuous.get(e.name)
         if cont is None:
-            raise UserError(located(e.span, f"{ctx.where}: unknown continuous variable '{e.name}'"))
+            raise error_at(e.span, f"{ctx.where}: unknown continuous variable '{e.name}'")
         off = ctx.offset + (1 if e.next else 0)
         if off > 1:
-            raise UserError(located(e.span, f"{ctx.where}: `'` inside `'` refers to step i+2"))
+            raise error_at(e.span, f"{ctx.where}: `'` inside `'` refers to step i+2")
         step = ctx.step + off
         n = len(ctx.states) - 1
         if step > n:
-            raise UserError(located(e.span, f"{ctx.where}: {e.name} refers to step {step} "
-                                    f"beyond the last state"))
+            raise error_at(e.span, f"{ctx.where}: {e.name} refers to step {step} "
+                                    f"beyond the last state")
         if cont.traj and step > n - 1 and check:
             raise _Skip()
         args = tuple(self._object(a, ctx, acc) for a in e.args)
@@ -342,11 +342,11 @@ class GraphNLPFactory:
         is_traj = isinstance(base, Slot) and self.domain.continuous[acc.slots[base.index][0]].traj
         if is_traj:
             if e.stop is not None:
-                raise UserError(located(e.span, f"{ctx.where}: slices of trajectories are not supported"))
+                raise error_at(e.span, f"{ctx.where}: slices of trajectories are not supported")
             return Call("waypoint", (base, Num(k)), span=e.span)
         if isinstance(base, Vec) and e.stop is None:
             if not -len(base.items) <= k < len(base.items):
-                raise UserError(located(e.span, f"{ctx.where}: index {k} out of range"))
+                raise error_at(e.span, f"{ctx.where}: index {k} out of range")
             return base.items[k]
         stop = None if e.stop is None else Num(self._int(e.stop, ctx, acc))
         if isinstance(base, Vec) and stop is not None:
@@ -357,7 +357,7 @@ class GraphNLPFactory:
         fn = e.fn
         if fn == "next":
             if ctx.offset:
-                raise UserError(located(e.span, f"{ctx.where}: `'` inside `'` refers to step i+2"))
+                raise error_at(e.span, f"{ctx.where}: `'` inside `'` refers to step i+2")
             return self._resolve(e.args[0], ctx.child(offset=1), acc)
         if fn == "world":
             return self._world(self._object(e.args[0], ctx, acc), ctx, acc, e)
@@ -373,7 +373,7 @@ class GraphNLPFactory:
                     arg = bound[1]
             if not isinstance(arg, CVar) or not self.domain.continuous.get(arg.name, None) \
                     or not self.domain.continuous[arg.name].traj:
-                raise UserError(located(e.span, f"{ctx.where}: waypoints() needs a trajectory"))
+                raise error_at(e.span, f"{ctx.where}: waypoints() needs a trajectory")
             return Num(self.problem.waypoints_of(self.domain.continuous[arg.name]), span=e.span)
         if fn == "sdist" and len(e.args) == 2:
             parts = []
@@ -397,7 +397,7 @@ class GraphNLPFactory:
                 except (ValueError, ZeroDivisionError, OverflowError):
                     pass
             return Call(fn, args, span=e.span)
-        raise UserError(located(e.span, f"{ctx.where}: unknown function '{fn}'"))
+        raise error_at(e.span, f"{ctx.where}: unknown function '{fn}'")
 
     # ---- world poses, fk, sdist --------------------------------------------------------
     def _dimension(self) -> int:
@@ -407,10 +407,10 @@ class GraphNLPFactory:
 
     def _world(self, obj: str, ctx: _Ctx, acc: _Factor, at) -> object:
         if obj == m.NONE or obj not in self.problem.objects:
-            raise UserError(located(at.span, f"{ctx.where}: world({obj}) of a non-object"))
+            raise error_at(at.span, f"{ctx.where}: world({obj}) of a non-object")
         if obj in ctx.chain:
-            raise UserError(located(at.span, f"{ctx.where}: the kinematic chain of {obj} is a cycle "
-                                    f"({' -> '.join(ctx.chain + (obj,))})"))
+            raise error_at(at.span, f"{ctx.where}: the kinematic chain of {obj} is a cycle "
+                                    f"({' -> '.join(ctx.chain + (obj,))})")
         frame = self.domain.frame_of(self.problem.objects[obj])
         if frame is None:
             return Vec(tuple(Num(float(x)) for x in self._scene_pose(obj, ctx, at)))
@@ -420,11 +420,11 @@ class GraphNLPFactory:
     def _scene_pose(self, obj: str, ctx: _Ctx, at) -> tuple[float, ...]:
         ent = self.scene.entity(obj) if self.scene is not None else None
         if ent is None:
-            raise UserError(located(at.span, f"{ctx.where}: '{obj}' has no frame declaration and "
-                                    f"no pose in the scene"))
+            raise error_at(at.span, f"{ctx.where}: '{obj}' has no frame declaration and "
+                                    f"no pose in the scene")
         if self.domain.world_space.kind == "SE2":
             if getattr(ent, "pose2", None) is None:
-                raise UserError(located(at.span, f"{ctx.where}: '{obj}' has no planar pose (pose2) in the scene"))
+                raise error_at(at.span, f"{ctx.where}: '{obj}' has no planar pose (pose2) in the scene")
             return tuple(ent.pose2)
         pose = getattr(ent, "pose", None) or getattr(ent, "base", None)
         return tuple(pose)
@@ -435,7 +435,7 @@ class GraphNLPFactory:
             link = self._resolve(a.args[1], ctx, acc)
             frame = self.domain.frame_of(self.problem.objects[robot])
             if frame is None or not (isinstance(frame.expr, Call) and frame.expr.fn == "fk"):
-                raise UserError(located(a.span, f"{ctx.where}: link() needs a robot whose frame is fk(...)"))
+                raise error_at(a.span, f"{ctx.where}: link() needs a robot whose frame is fk(...)")
             fk_call = Call("fk", (frame.expr.args[0], frame.expr.args[1], link), span=frame.expr.span)
             inner = ctx.child(params={frame.param.name: robot}, iters={})
             return [Call("link", (Obj(robot), link)), self._resolve(fk_call, inner, acc)]
@@ -447,12 +447,12 @@ class GraphNLPFactory:
         q = self._resolve(e.args[1], ctx, acc)
         srobot = self.scene.robots.get(robot) if self.scene is not None else None
         if srobot is None:
-            raise UserError(located(e.span, f"{ctx.where}: fk of '{robot}', which is not a scene robot"))
+            raise error_at(e.span, f"{ctx.where}: fk of '{robot}', which is not a scene robot")
         if len(e.args) == 3:
             frame = self._resolve(e.args[2], ctx, acc)
         else:
             if not srobot.ee:
-                raise UserError(located(e.span, f"{ctx.where}: robot '{robot}' has no `ee` frame in the scene"))
+                raise error_at(e.span, f"{ctx.where}: robot '{robot}' has no `ee` frame in the scene")
             frame = Str(srobot.ee)
         base = Vec(tuple(Num(float(x)) for x in srobot.base))
         return Call("fk", (Obj(robot), q, frame, base), span=e.span)
@@ -460,11 +460,11 @@ class GraphNLPFactory:
     # ---- scene attributes --------------------------------------------------------------
     def _scene_attr(self, name: str, objs: list[str], ctx: _Ctx, at: Call):
         if len(objs) != 1:
-            raise UserError(located(at.span, f"{ctx.where}: scene attribute {name} takes one object"))
+            raise error_at(at.span, f"{ctx.where}: scene attribute {name} takes one object")
         value = self._attr_value(name, objs[0])
         if value is None:
-            raise UserError(located(at.span, f"{ctx.where}: scene entry '{objs[0]}' has no "
-                                    f"attribute '{name}'"))
+            raise error_at(at.span, f"{ctx.where}: scene entry '{objs[0]}' has no "
+                                    f"attribute '{name}'")
         if isinstance(value, (int, float)):
             return Num(float(value), span=at.span)
         return Vec(tuple(Num(float(x)) for x in value), span=at.span)
@@ -507,8 +507,8 @@ class GraphNLPFactory:
         if space.kind == "joints":
             names = [p.name for p in cont.params]
             if space.robot not in names:
-                raise UserError(located(cont.span, f"joints({space.robot}) of {name} must name one "
-                                        f"of its parameters"))
+                raise error_at(cont.span, f"joints({space.robot}) of {name} must name one "
+                                        f"of its parameters")
             robot = args[names.index(space.robot)]
             d, lo, hi = self.robot_dims(robot)
             lower = tuple(lo) if lo is not None else None

@@ -21,16 +21,21 @@ Binding = dict[str, str]
 
 __all__ = [
     "Binding", "GroundRule", "bindings", "term_name", "var_name", "compare_holds",
-    "substitute", "ground_rules", "located", "MARKER",
+    "substitute", "ground_rules", "error_at", "MARKER",
 ]
 
 MARKER = "initial"
 """Name of the marker variable (values false/true, true only in s_0) used by `initial` rules."""
 
 
-def located(span: Span | None, message: str) -> str:
-    """`file:line:col: message` when a span is known (the CLI prints this as is)."""
-    return f"{span}: {message}" if span is not None else message
+def error_at(span: Span | None, message: str) -> UserError:
+    """A user error located at `span`: a `DiagnosticError` (file:line:col, the source line and
+    a caret) when the span is known, else a plain `UserError`."""
+    if span is None:
+        return UserError(message)
+    from gnppdsl.lang.diagnostics import Diagnostic, DiagnosticError
+
+    return DiagnosticError([Diagnostic(message, span, kind="compile")])
 
 
 def var_name(name: str, args: Sequence[str]) -> str:
@@ -44,9 +49,9 @@ def term_name(term, binding: Binding) -> str:
         return term.name
     if isinstance(term, Param):
         if term.name not in binding:
-            raise UserError(located(term.span, f"unbound variable '{term.name}'"))
+            raise error_at(term.span, f"unbound variable '{term.name}'")
         return binding[term.name]
-    raise UserError(located(getattr(term, "span", None), f"not a logic term: {term!r}"))
+    raise error_at(getattr(term, "span", None), f"not a logic term: {term!r}")
 
 
 def compare_holds(problem: m.Problem, cmp: m.Compare, binding: Binding) -> bool:
@@ -59,7 +64,7 @@ def compare_holds(problem: m.Problem, cmp: m.Compare, binding: Binding) -> bool:
     try:
         ia, ib = problem.object_index(a), problem.object_index(b)
     except ValueError:
-        raise UserError(located(cmp.span, f"'{cmp.op}' compares objects, got '{a}' and '{b}'"))
+        raise error_at(cmp.span, f"'{cmp.op}' compares objects, got '{a}' and '{b}'")
     return {"<": ia < ib, "<=": ia <= ib, ">": ia > ib, ">=": ia >= ib}[cmp.op]
 
 
@@ -133,8 +138,8 @@ class _FactLookup:
             return None if i is None else (i, 0 if lit.negated else 1)
         if isinstance(lit, m.StateLit):
             if lit.negated:
-                raise UserError(located(lit.span, "rule patterns are conjunctions of "
-                                        "`var = value` facts; '!=' is not allowed here"))
+                raise error_at(lit.span, "rule patterns are conjunctions of "
+                                        "`var = value` facts; '!=' is not allowed here")
             name = var_name(lit.var, [term_name(a, binding) for a in lit.args])
             i = self.index.get(name)
             if i is None:
@@ -142,7 +147,7 @@ class _FactLookup:
             value = term_name(lit.value, binding)
             values = self.task.variables[i].values
             return (i, values.index(value)) if value in values else None
-        raise UserError(located(getattr(lit, "span", None), f"unsupported pattern literal {lit!r}"))
+        raise error_at(getattr(lit, "span", None), f"unsupported pattern literal {lit!r}")
 
     def partial_state(self, lits, binding: Binding) -> PartialState | None:
         facts: dict[int, int] = {}
@@ -160,11 +165,11 @@ def ground_rules(problem: m.Problem, task: SASTask) -> list[GroundRule]:
     out: list[GroundRule] = []
     for rule in problem.domain.rules:
         if rule.kind not in ("state", "transition", "always", "initial"):
-            raise UserError(located(rule.span, f"unknown rule kind '{rule.kind}'"))
+            raise error_at(rule.span, f"unknown rule kind '{rule.kind}'")
         pre_lits = rule.pre
         if rule.kind == "initial":
             if MARKER not in look.index:
-                raise UserError(located(rule.span, "task has no `initial` marker variable"))
+                raise error_at(rule.span, "task has no `initial` marker variable")
         for binding in bindings(problem, rule.params, rule.where):
             pre = look.partial_state(pre_lits, binding)
             if pre is None:

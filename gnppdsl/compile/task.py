@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from itertools import product
 
-from gnppdsl.compile.ground import MARKER, Binding, bindings, compare_holds, located, term_name, var_name
+from gnppdsl.compile.ground import MARKER, Binding, bindings, compare_holds, error_at, term_name, var_name
 from gnppdsl.compile.sas import Axiom, Effect, Fact, Operator, PartialState, SASTask, SASVariable
 from gnppdsl.errors import UserError
 from gnppdsl.ir import model as m
@@ -52,7 +52,7 @@ class _Builder:
     # ---- variables ---------------------------------------------------------------------
     def add_var(self, name: str, values: tuple[str, ...], derived: bool, span=None) -> int:
         if name in self.index:
-            raise UserError(located(span, f"variable '{name}' declared twice"))
+            raise error_at(span, f"variable '{name}' declared twice")
         self.index[name] = len(self.names)
         self.names.append(name)
         self.values.append(values)
@@ -138,7 +138,7 @@ class _Builder:
                 if self.values[v] == BOOL:   # boolean state or derived variable: flip it
                     return [((v, 1 - val),)]
             return [((self.aux(inner, f"{owner}~not"), 0),)]
-        raise UserError(located(getattr(f, "span", None), f"unsupported formula {f!r}"))
+        raise error_at(getattr(f, "span", None), f"unsupported formula {f!r}")
 
     def conjunction(self, lits, b: Binding, owner: str) -> Conj | None:
         """Facts of a conjunction of literals; None if it can never hold. A literal whose
@@ -193,13 +193,13 @@ class _Builder:
             name = var_name(a.var, [term_name(x, {}) for x in a.args])
             v = self.index.get(name)
             if v is None or self.derived[v]:
-                raise UserError(located(a.span, f"'{name}' is not a state variable of this problem"))
+                raise error_at(a.span, f"'{name}' is not a state variable of this problem")
             value = term_name(a.value, {})
             if value not in self.values[v]:
-                raise UserError(located(a.span, f"'{value}' is not a possible value of {name} "
-                                        f"(possible: {', '.join(self.values[v])})"))
+                raise error_at(a.span, f"'{value}' is not a possible value of {name} "
+                                        f"(possible: {', '.join(self.values[v])})")
             if v in init and init[v] != self.values[v].index(value):
-                raise UserError(located(a.span, f"two initial values for {name}"))
+                raise error_at(a.span, f"two initial values for {name}")
             init[v] = self.values[v].index(value)
         if marker is not None:
             init[marker] = 1
@@ -211,15 +211,15 @@ class _Builder:
             elif m.NONE in self.values[v]:
                 init[v] = self.values[v].index(m.NONE)
             else:
-                raise UserError(located(p.span, f"no initial value for {name}"))
+                raise error_at(p.span, f"no initial value for {name}")
         return init
 
     def goal(self) -> PartialState:
         conj = self.conjunction(self.problem.goal, {}, "goal")
         if conj is None:
-            raise UserError(located(self.problem.span,
+            raise error_at(self.problem.span,
                                     "the goal can never hold (a value outside a variable's domain "
-                                    "or contradictory goal facts)"))
+                                    "or contradictory goal facts)")
         return PartialState.of(conj)
 
     def operators(self, marker: int | None) -> list[Operator]:
