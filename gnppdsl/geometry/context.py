@@ -42,8 +42,13 @@ def body_key(body: Any) -> tuple[str, str | None]:
 class GeometryContext:
     """Geometry of one scene: robot models, convex bodies, cached casadi functions."""
 
-    def __init__(self, scene: Scene, models: dict[str, RobotModel] | None = None):
+    def __init__(self, scene: Scene, models: dict[str, RobotModel] | None = None, far_field: float | None = None):
+        """`far_field` (metres, default off): symbolic `sdist`/`sdist2` of bodies whose bounding
+        spheres are farther apart than this return the bounding-sphere distance instead of
+        querying coal (a smooth lower bound; sound for `sdist >= m` with m < far_field, several
+        times cheaper for the many far pairs of a large NLP). Numeric distances stay exact."""
         self.scene = scene
+        self.far_field = far_field
         self.models: dict[str, RobotModel] = dict(models or {})
         for name, spec in scene.robots.items():
             if spec.kind == "urdf" and name not in self.models:
@@ -115,7 +120,8 @@ class GeometryContext:
         key = (ka, kb, planar)
         if key not in self._callbacks:
             name = fn_name("sdist2" if planar else "sdist", ka[0], ka[1] or "", kb[0], kb[1] or "")
-            self._callbacks[key] = WitnessCallback(name, self.body(a, planar), self.body(b, planar), planar=planar)
+            self._callbacks[key] = WitnessCallback(name, self.body(a, planar), self.body(b, planar), planar=planar,
+                                                   far_field=self.far_field)
         return self._callbacks[key]
 
     # -- protocol: symbolic ---------------------------------------------------------------------

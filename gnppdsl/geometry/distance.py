@@ -14,7 +14,7 @@ one; robot links are merged into one hull); the distance is the minimum over sha
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -29,6 +29,22 @@ class ConvexBody:
     name: str
     shapes: list
     placements: list[np.ndarray]
+    _spheres: dict = field(default_factory=dict)
+
+    def bounding_sphere(self, planar: bool = False) -> tuple[np.ndarray, float]:
+        """(centre in the body frame, radius) of a sphere containing every shape; `planar`: a
+        circle around the xy footprint (centre z = 0), for z-extrusions moving in the plane."""
+        if planar not in self._spheres:
+            from gnppdsl.geometry.shapes import shape_vertices
+            pts = np.vstack([shape_vertices(s) @ M[:3, :3].T + M[:3, 3] for s, M in zip(self.shapes, self.placements)])
+            if planar:
+                pts = pts.copy()
+                pts[:, 2] = 0.0
+            c = (pts.min(axis=0) + pts.max(axis=0)) / 2
+            # vertices of curved shapes are samples on their surface: pad 2 % for what lies between
+            r = 1.02 * float(np.linalg.norm(pts - c, axis=1).max())
+            self._spheres[planar] = (c, r)
+        return self._spheres[planar]
 
 
 def _transform(R: np.ndarray, p: np.ndarray):
@@ -76,10 +92,19 @@ class WitnessCallback(ca.Callback):
     (a "stop gradient"): derivatives come from the model expression around it."""
 
     def __init__(self, name: str, body_a: ConvexBody, body_b: ConvexBody, features: bool = True,
-                 planar: bool = False):
+                 planar: bool = False, far_field: float | None = None):
         ca.Callback.__init__(self)
         self.body_a, self.body_b = body_a, body_b
         self.features, self.planar = features, planar
+        # far_field: beyond this bounding-sphere gap, answer with the sphere-sphere distance (a
+        # smooth lower bound of the true distance, no coal query). Only sound for constraints
+        # `sdist >= m` with m < far_field, which is how the templates use it; off by default.
+        self.far_field = far_field
+        self.far = 0
+        if far_field is not None:
+            ca_, ra = body_a.bounding_sphere(planar)
+            cb_, rb = body_b.bounding_sphere(planar)
+            self._bounds = (ca_.tolist(), ra, cb_.tolist(), rb)
         self.calls = 0
         # ipopt evaluates constraints, their Jacobian and the Hessian at the same point: remember
         # recent answers (keyed by the exact input bytes) so coal runs once per point.
@@ -129,6 +154,10 @@ class WitnessCallback(ca.Callback):
         pA = x[9:12]
         RB = x[12:21].reshape(3, 3, order="F")
         pB = x[21:24]
+        if self.far_field is not None:
+            out = self._far_model(RA, pA, RB, pB)
+            if out is not None:
+                return out
         self.calls += 1
         d, n, wa, wb, (sa, Ma, sb, Mb) = witness(self.body_a, RA, pA, self.body_b, RB, pB, with_shapes=True)
         nn = np.linalg.norm(n)
@@ -147,6 +176,21 @@ class WitnessCallback(ca.Callback):
         out[5:8], out[8:11] = RA.T @ (wa - pA), RB.T @ (wb - pB)
         out[11:14], out[14:17] = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)
         out[21:24] = n
+        return out
+
+    def _far_model(self, RA, pA, RB, pB) -> np.ndarray | None:
+        la, ra, lb, rb = self._bounds
+        cA = RA @ la + pA
+        cB = RB @ lb + pB
+        gap = float(np.linalg.norm(cB - cA)) - ra - rb
+        if gap <= self.far_field:
+            return None
+        self.far += 1
+        out = np.zeros(N_OUT)
+        out[2], out[4] = 1.0, 1.0                    # point-point model with radii
+        out[5:8], out[8:11] = la, lb
+        out[11:14], out[14:17] = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)
+        out[19], out[20] = ra, rb
         return out
 
     def has_jacobian(self):

@@ -301,3 +301,45 @@ def test_sdist2_hessian_matches_finite_differences():
         print(f"\n[hessian sdist2 {a}-{b}] grad err max {gerrs[-1]:.1e}, hessian rel err median {errs[10]:.1e}, "
               f"max {errs[-1]:.1e}")
         assert errs[-3] < 1e-6 and gerrs[-3] < 1e-3
+
+
+def test_far_field_is_a_lower_bound_and_exact_when_near(ctx):
+    """far_field: beyond the threshold the bounding-sphere distance (never above the true one),
+    below it the exact distance; numeric distances are unaffected."""
+    far = GeometryContext(ctx.scene, ctx.models, far_field=0.2)
+    rng = np.random.default_rng(21)
+    n_far = n_near = 0
+    for a, b in (("box", "mesh"), (("link", "left", "panda_hand"), "box2"), ("ball", "cyl")):
+        xa, xb = ca.SX.sym("a", 7), ca.SX.sym("b", 7)
+        f_far = ca.Function("f", [xa, xb], [far.sdist(a, xa, b, xb)])
+        for i in range(40):
+            spread = 0.8 if i % 2 else 0.2
+            pa, pb = _rand_pose(rng, spread), _rand_pose(rng, spread)
+            exact = ctx.sdist_numeric(a, pa, b, pb)
+            assert far.sdist_numeric(a, pa, b, pb) == exact
+            v = float(f_far(pa, pb))
+            assert v <= exact + 1e-9
+            if v > 0.2:
+                n_far += 1
+            else:
+                n_near += 1
+                assert abs(v - exact) < 1e-9
+    assert n_far > 10 and n_near > 10
+    # the ipopt reach of the test above gives a collision-free optimum with the far field on
+    robot = far.robot("left")
+    q = ca.SX.sym("q", robot.nc)
+    base = far.base("left")
+    ball = np.r_[0.5, 0.0, 0.3, 0, 0, 0, 1]
+    ee = far.fk("left", q, "panda_hand_tcp", base)
+    cons = [far.sdist(("link", "left", l), far.fk("left", q, l, base), "ball2", ball) for l in far.links("left")]
+    solver = ca.nlpsol("s", "ipopt", {"x": q, "f": ca.sumsqr(ee[:3] - np.r_[0.5, 0.0, 0.36]), "g": ca.vertcat(*cons)},
+                       {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.max_iter": 100})
+    r = solver(x0=robot.home_coords(), lbg=0.03, ubg=ca.inf, lbx=robot.lower, ubx=robot.upper)
+    assert solver.stats()["success"]
+    qs = np.array(r["x"]).ravel()
+    dmin = min(far.sdist_numeric(("link", "left", l), far.fk_numeric("left", qs, l, base), "ball2", ball)
+               for l in far.links("left"))
+    assert 0.03 - 1e-6 < dmin < 0.03 + 1e-4
+    n_coal = sum(cb.calls for cb in far._callbacks.values())
+    n_skip = sum(cb.far for cb in far._callbacks.values())
+    print(f"\n[far field] coal queries {n_coal}, answered by bounding spheres {n_skip}")
