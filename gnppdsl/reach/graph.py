@@ -379,6 +379,12 @@ class ReachabilityGraph:
         return self._solve(self.library.end("q", qa), self.library.end("q", qb),
                            lambda: self.attach_config(qa), lambda: self.attach_config(qb))
 
+    def query_from_config(self, q, x) -> Solution:
+        """Path from a configuration (e.g. the robot's home at the start of a plan) to a position."""
+        q, x = np.asarray(q, dtype=float).ravel(), np.asarray(x, dtype=float).ravel()
+        return self._solve(self.library.end("q", q), self.library.end("x", x),
+                           lambda: self.attach_config(q), lambda: self.attach_position(x))
+
     def path(self, from_position, to_position) -> tuple[float, np.ndarray]:
         """(cost, waypoints in joint space, n x nq) of the cheapest collision-checked path between
         two end-effector positions; (inf, empty array) if an end is unreachable or disconnected."""

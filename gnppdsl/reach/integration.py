@@ -122,7 +122,7 @@ def heuristic_pair_costs(task, targets: Mapping[int, np.ndarray], graph: Reachab
     """R-LGP travel costs for `SASTask.pair_costs`.
 
     For every operator `op` with a target and every `prev` that also has one (or `None`, the
-    start of the plan, where the end effector is at `start`, default the graph's home position):
+    start of the plan: from the position `start`, by default from the robot's home configuration):
     `round(scale * travel(target(prev), target(op)))`, the graph's Eq. 3 path cost. A pair whose
     travel has no path costs `unreachable_cost`. Pairs with an untargeted `prev` are left out
     (cost 0). `task` is only used to check the operator indices. The graph's solution library
@@ -132,15 +132,21 @@ def heuristic_pair_costs(task, targets: Mapping[int, np.ndarray], graph: Reachab
     for i in targets:
         if not 0 <= int(i) < n:
             raise ValueError(f"operator index {i} out of range (task has {n} operators)")
-    start = graph.start_position if start is None else np.asarray(start, dtype=float)
+
+    def scaled(c: float) -> int:
+        return int(unreachable_cost) if not math.isfinite(c) else int(round(scale * c))
 
     def cost(a, b) -> int:
-        c = graph.travel_cost(a, b)
-        return int(unreachable_cost) if not math.isfinite(c) else int(round(scale * c))
+        return scaled(graph.travel_cost(a, b))
+
+    def first(x) -> int:      # from the home configuration itself, or from a given position
+        if start is None:
+            return scaled(graph.query_from_config(graph.home, x).cost)
+        return cost(np.asarray(start, dtype=float), x)
 
     out: dict[tuple[int | None, int], int] = {}
     for op, x in targets.items():
-        c0 = cost(start, x)
+        c0 = first(x)
         if c0:
             out[(None, int(op))] = c0
         for prev, xp in targets.items():

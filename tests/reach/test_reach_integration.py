@@ -77,7 +77,8 @@ def test_pair_costs_make_the_cheapest_plan_differ_from_the_shortest(lab_graph):
     targets = {0: far, 1: near1, 2: near2}
     task.pair_costs = heuristic_pair_costs(task, targets, g, scale=100)
     # the costs are the graph's travel costs, integer-scaled, from the home position at the start
-    assert task.pair_costs[(None, 0)] == round(100 * g.travel_cost(s0, far))
+    assert task.pair_costs[(None, 0)] == round(100 * g.query_from_config(g.home, far).cost)
+    assert g.query_from_config(g.home, far).path[0].tolist() == g.home.tolist()
     assert task.pair_costs[(1, 2)] == round(100 * g.travel_cost(near1, near2))
     assert task.pair_costs[(2, 1)] == task.pair_costs[(1, 2)]          # travel is symmetric
     assert 1 + task.pair_costs[(None, 0)] > 2 + task.pair_costs[(None, 1)] + task.pair_costs[(1, 2)]
@@ -138,8 +139,10 @@ def test_sorting_optimal_plan_with_travel_costs(sorting, sorting_graph):
     task.pair_costs = heuristic_pair_costs(task, targets, sorting_graph)
     assert all(isinstance(c, int) and c >= 0 for c in task.pair_costs.values())
     for (prev, op), c in list(task.pair_costs.items())[:20]:
-        a = sorting_graph.start_position if prev is None else targets[prev]
-        assert c == round(100 * sorting_graph.travel_cost(a, targets[op]))
+        if prev is None:
+            assert c == round(100 * sorting_graph.query_from_config(sorting_graph.home, targets[op]).cost)
+        else:
+            assert c == round(100 * sorting_graph.travel_cost(targets[prev], targets[op]))
     plan = IncrementalPlanner(task).optimal_plan(horizon=4).unwrap()
     best_cost, _ = _brute_force_cheapest(task, 4)
     assert plan.cost == _cost(task, plan.operators) == best_cost
