@@ -56,9 +56,13 @@ def breakdown(path: Path) -> dict[str, float]:
     t0 = time.perf_counter()
     text = write_sas(task)
     out["sas"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
     from gnppdsl.cli.compile_cmd import _robot_dims
-    factors = GraphNLPFactory(problem, task, robot_dims=_robot_dims(problem)).factors([initial_state(task)])
+
+    t0 = time.perf_counter()
+    dims = _robot_dims(problem)          # loads robot models (pinocchio) for URDF robots
+    out["robot models"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    factors = GraphNLPFactory(problem, task, robot_dims=dims).factors([initial_state(task)])
     out["factors(s0)"] = time.perf_counter() - t0
     out["size"] = f"{len(task.variables)} vars, {len(task.operators)} ops, {len(task.axioms)} axioms, " \
                   f"{len(text) // 1024} KiB .sas, {len(factors)} factors at s0"
