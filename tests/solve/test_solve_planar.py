@@ -77,3 +77,20 @@ def test_other_algorithms_on_the_occupied_target(algorithm, switches):
     for conflict in res.conflicts:
         if conflict.source != "plan":
             check_conflict_infeasible(c, conflict)
+
+
+def test_gnpp_needs_fewer_nlps_than_oneway_when_branching_grows():
+    """NLP counts (deterministic for a seed), not timings: on a cluttered variant of p3 the
+    conflicts prune what One-way has to enumerate plan by plan."""
+    data = Path(__file__).parent / "data"
+    c = load_and_compile([str(PLANAR / "domain.pntc"), str(data / "clutter.pntc")])
+    runs = {}
+    for algorithm, switches in (("oneway", ""), ("gnpp", "trn")):
+        res = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, algorithm=algorithm,
+                                                           switches=switches, time_limit=120, max_horizon=4))
+        assert res.solved and res.stats.N0 == 2 and res.stats.N == 4
+        check_solution(c, res)
+        runs[algorithm] = res.stats
+    assert runs["gnpp"].plans < runs["oneway"].plans
+    assert runs["gnpp"].nlp_solves < runs["oneway"].nlp_solves
+    assert runs["gnpp"].ipopt_runs < runs["oneway"].ipopt_runs
