@@ -354,7 +354,8 @@ class Workspace:
         declaring `domain NAME`."""
         want = f.header.domain.value
         here = Path(f.path).parent
-        for c in candidates or []:
+        ordered = sorted(candidates or [], key=lambda c: Path(c).resolve().parent != here.resolve())
+        for c in ordered:                       # given files, those next to the problem first
             g = self.parse(c)
             if g is not None and g.header.kind == "domain" and g.header.name.value == want:
                 return c

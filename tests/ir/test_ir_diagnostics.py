@@ -646,3 +646,15 @@ def test_objects_missing_from_the_scene(tmp_path):
     assert msgs == ["object 'a' needs a robot in scene s.yaml (joints of 'j')",
                     "object 'b2' has no entry in scene s.yaml (it has a continuous variable 'pose')",
                     "object 'g' has no entry in scene s.yaml (it has a continuous variable 'q')"]
+
+
+def test_given_domain_next_to_the_problem_wins(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "a" / "domain.pntc").write_text(BASE.replace("type gripper\n", "type gripper\ntype extra\n"))
+    (tmp_path / "b" / "domain.pntc").write_text(BASE)
+    (tmp_path / "b" / "p.pntc").write_text(PROBLEM.replace("goal { parent(b1) = g }", "goal { parent(b1) = g }\nobjects { e : extra }"))
+    rep = check_files([str(tmp_path / "a" / "domain.pntc"), str(tmp_path / "b" / "domain.pntc"),
+                       str(tmp_path / "b" / "p.pntc")])
+    # b's domain has no type `extra`: the problem was checked against it, not against a's
+    at(rep.reporter.diagnostics, 5, 15, "unknown-type", "p.pntc")
