@@ -21,10 +21,6 @@ import numpy as np
 from gnppdsl.geometry.robots import RobotModel
 
 
-def _skew(a):
-    return ca.vertcat(ca.horzcat(0, -a[2], a[1]), ca.horzcat(a[2], 0, -a[0]), ca.horzcat(-a[1], a[0], 0))
-
-
 def axis_rotation(axis, c, s):
     """Rodrigues' rotation about a constant unit axis, from cos and sin of the angle."""
     a = np.asarray(axis, dtype=float)

@@ -339,10 +339,6 @@ def _srdf_pairs(geom, model, srdf: str | None) -> None:
         pin.removeCollisionPairs(model, geom, srdf)
 
 
-def _parse_base(base) -> np.ndarray:
-    return se3_to_matrix(base)
-
-
 @functools.lru_cache(maxsize=64)
 def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_items, base_joint,
                  base_limits=None) -> RobotModel:
@@ -425,7 +421,7 @@ def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_it
         hint = f" (did you mean '{close[0]}'?)" if close else ""
         raise UserError(f"robot {name}: end-effector frame '{ee}' not in the model{hint}")
     fixed = frozenset(ln for ln in links if model.frames[model.getFrameId(ln)].parentJoint == 0)
-    return RobotModel(name=name, model=model, geom=geom, base=_parse_base(base), ee=ee, coords=coords, nc=nc,
+    return RobotModel(name=name, model=model, geom=geom, base=se3_to_matrix(base), ee=ee, coords=coords, nc=nc,
                       lower=lower, upper=upper, links=links, fixed_links=fixed, self_pairs=sorted(self_pairs),
                       urdf=urdf, srdf=srdf)
 
