@@ -790,8 +790,10 @@ class DomainResolver:
             mods = [m.name for m in self.modules if m.name != PRELUDE] + [self.name]
             if mod not in mods:
                 if report:
+                    exists = self.ws.find_module(mod, Path(self.f.path).parent) is not None
                     self.err(c.qname[0].span, f"unknown module '{mod}' (not used by this domain)",
-                             "unknown-module", did_you_mean(mod, mods) or f"add `use {mod}`")
+                             "unknown-module", f"add `use {mod}`" if exists
+                             else did_you_mean(mod, mods) or f"no module '{mod}' exists")
                 return None
             q = f"{mod}.{short}"
             if q not in self.template_asts:

@@ -658,3 +658,9 @@ def test_given_domain_next_to_the_problem_wins(tmp_path):
                        str(tmp_path / "b" / "p.pntc")])
     # b's domain has no type `extra`: the problem was checked against it, not against a's
     at(rep.reporter.diagnostics, 5, 15, "unknown-type", "p.pntc")
+
+
+def test_module_exists_but_is_not_used(tmp_path):
+    x = at(check(tmp_path, "rule r(o: block) : always => planar.same(pose(o), pose(o))\n"), 15, 30,
+           "unknown-module")
+    assert x.hint == "add `use planar`"
