@@ -131,3 +131,29 @@ def test_cli_bad_problem_file_exits_2(tmp_path, capsys):
     assert main(["compile", str(bad), "--emit", "sas"]) == 2
     err = capsys.readouterr().err
     assert "bad.pntc" in err and "Traceback" not in err
+
+
+def _planar_cases():
+    return [c for c in _cases() if "planar-" in c.id]
+
+
+@pytest.mark.parametrize("path,n0", _planar_cases())
+def test_scene_initial_configuration_satisfies_the_graph_of_s0(path, n0):
+    """The scene is a geometric solution of s_0: evaluating every factor of G(<s_0>) at the
+    factory's warm start (scene poses made relative to their parents) violates nothing."""
+    from body_eval import violation
+
+    from gnppdsl.compile.factory import GraphNLPFactory
+    from gnppdsl.compile.semantics import initial_state
+    from gnppdsl.compile.task import build_task
+
+    problem = _load(path)
+    task = build_task(problem)
+    fac = GraphNLPFactory(problem, task)
+    factors = fac.factors([initial_state(task)])
+    assert factors
+    for f in factors:
+        values = [fac.initial_guess(v) for v in f.variables]
+        assert all(v is not None for v in values), f.label
+        worst = max(violation(c, values) for c in f.body)
+        assert worst < 1e-9, (f.label, worst)
