@@ -9,7 +9,8 @@ import argparse
 import sys
 
 EPILOG = """\
-Each FILE is a domain, problem or module (.pntc), or a directory (all its *.pntc files).
+Each FILE is a domain, problem or module (.pntc), a scene (.yaml), or a directory (all its
+*.pntc files).
 A problem finds its domain among the given files, then as domain.pntc next to it, then as any
 *.pntc in its directory declaring `domain NAME`. Problems load their scene YAML too.
 
@@ -20,13 +21,16 @@ examples:
   gnpp check examples/planar/domain.pntc
   gnpp check examples/planar            # domain and all problems of a directory
   gnpp check stdlib/planar.pntc         # a library module on its own
+  gnpp check examples/lab/lab.yaml      # a scene file on its own
+
+Language reference: docs/reference.md; scene schema: docs/scene.md.
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
-    parser.add_argument("files", nargs="+", metavar="FILE", help="domain, problem or module files, or directories")
+    parser.add_argument("files", nargs="+", metavar="FILE", help=".pntc files (domains, problems, modules), scene .yaml files, or directories")
     parser.add_argument("-q", "--quiet", action="store_true", help="print diagnostics only, no summary line")
 
 
