@@ -107,6 +107,12 @@ def scene_value(ctx, name: str):
     return spec.home if spec.home else spec.base
 
 
+def state_value(ctx, state: dict[str, Any], name: str):
+    """The value of an entity in a state; missing or None: its scene value."""
+    v = state.get(name)
+    return scene_value(ctx, name) if v is None else v
+
+
 def robot_q_base(ctx, name: str, value) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(value, dict):
         q = np.asarray(value["q"], dtype=float)
@@ -136,10 +142,10 @@ def placed_bodies(ctx, state: dict[str, Any]) -> list[_Placed]:
     for name, o in ctx.scene.objects.items():
         if o.shape.kind == "none":
             continue
-        val = state.get(name, scene_value(ctx, name))
+        val = state_value(ctx, state, name)
         out.append(_Placed(name, name, ctx.body(name, planar), entity_matrix(ctx, name, val), o.static))
     for name, spec in ctx.scene.robots.items():
-        val = state.get(name, scene_value(ctx, name))
+        val = state_value(ctx, state, name)
         if spec.kind == "urdf":
             q, base = robot_q_base(ctx, name, val)
             fixed = ctx.robot(name).fixed_links if "base" not in (val if isinstance(val, dict) else {}) else ()
@@ -348,7 +354,7 @@ def check_state(ctx_or_scene, state: dict[str, Any], margin: float = 0.0, ignore
     lims = []
     for name, spec in ctx.scene.robots.items():
         if spec.kind == "urdf":
-            q, _ = robot_q_base(ctx, name, state.get(name, scene_value(ctx, name)))
+            q, _ = robot_q_base(ctx, name, state_value(ctx, state, name))
             lims += joint_limit_violations(ctx, name, q)
     return StateReport(dists, lims, margin)
 

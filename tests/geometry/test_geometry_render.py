@@ -32,7 +32,7 @@ def test_render_3d(tmp_path):
     scene = _scene3()
     ctx = GeometryContext(scene)
     q = ctx.robot("left").home_coords()
-    states = [{}, {"b1": (0.8, -0.2, 0.03, 0, 0, 0, 1), "left": q + 0.3}]
+    states = [{"left": None}, {"b1": (0.8, -0.2, 0.03, 0, 0, 0, 1), "left": q + 0.3}]    # None: scene value
     paths = render_keyframes(scene, ctx, states, str(tmp_path / "out"), size=400)
     assert len(paths) == 2
     imgs = [Image.open(p) for p in paths]
