@@ -24,6 +24,7 @@ class _Poly:
     label: str | None
     verts: np.ndarray          # world vertices (n x 3)
     color: tuple[int, int, int, int]
+    layer: int = 0             # planar scenes: 0 static, 1 movable objects, 2 robots (drawn in this order)
 
 
 def _rgba(c) -> tuple[int, int, int, int]:
@@ -41,7 +42,8 @@ def _polys(ctx, state: dict[str, Any]) -> list[_Poly]:
         color = _rgba(ent.color) if ent is not None else (200, 200, 200, 255)
         label = p.owner if p.owner not in labelled else None     # a robot: at its first (root) link
         labelled.add(p.owner)
-        out.append(_Poly(p.name, label, world_vertices(p.body, p.T), color))
+        layer = 2 if p.owner in scene.robots else (0 if p.static else 1)
+        out.append(_Poly(p.name, label, world_vertices(p.body, p.T), color, layer))
     return out
 
 
@@ -54,8 +56,9 @@ def _hull_poly(pts2: np.ndarray) -> list[tuple[float, float]]:
 class _View:
     """Orthographic view: world axes (u, v) on the image, depth axis d (larger = nearer)."""
 
-    def __init__(self, title, u, v, d, lo, hi, size):
+    def __init__(self, title, u, v, d, lo, hi, size, planar=False):
         self.title, self.u, self.v, self.d = title, u, v, d
+        self.planar = planar
         span = max(hi[u] - lo[u], hi[v] - lo[v], 1e-3)
         self.scale = (size - 40) / span
         self.lo, self.hi, self.size = lo, hi, size
@@ -74,7 +77,10 @@ def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozense
     layer = img.crop((x0, 0, x0 + view.size, view.size + 20))
     draw = ImageDraw.Draw(layer, "RGBA")
     draw.text((6, 4), view.title, fill=(0, 0, 0, 255), font=font)
-    order = sorted(polys, key=lambda p: p.verts[:, view.d].max())   # far first
+    if view.planar:     # extrusion heights mean nothing: furniture, then objects, then robots
+        order = sorted(polys, key=lambda p: p.layer)
+    else:
+        order = sorted(polys, key=lambda p: p.verts[:, view.d].max())   # far first
     for p in order:
         pts = view.px(p.verts)
         hull = _hull_poly(pts)
@@ -82,7 +88,10 @@ def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozense
             continue
         fill = p.color[:3] + (min(p.color[3], 230),)
         outline = tuple(int(c * 0.5) for c in p.color[:3]) + (255,)
-        draw.polygon(hull, fill=fill, outline=outline)
+        if view.planar and p.layer == 2:    # planar robots: translucent with a strong outline
+            draw.polygon(hull, fill=p.color[:3] + (120,), outline=(0, 0, 120, 255), width=2)
+        else:
+            draw.polygon(hull, fill=fill, outline=outline)
     # movable objects hidden under an arm stay visible: their outlines again, on top
     for p in order:
         if p.label and p.name in movable:
@@ -99,7 +108,10 @@ def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozense
         if not p.label:
             continue
         px = view.px(p.verts)
-        if p.name in movable or "/" in p.name or p.name not in statics:
+        if p.layer == 2 and view.planar:  # a planar robot: label below it (it often sits on a block)
+            c = px.mean(axis=0)
+            draw.text((c[0] - 3 * len(p.label), px[:, 1].max() + 2), p.label, fill=(0, 0, 120, 255), font=font)
+        elif p.name in movable or "/" in p.name or p.name not in statics:
             c = px.mean(axis=0)           # movable objects and robots: centred, black
             draw.text((c[0] - 3 * len(p.label), c[1] - 5), p.label, fill=(0, 0, 0, 255), font=font)
         else:                             # static furniture: small grey tag at its top-left corner
@@ -127,7 +139,7 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     pad = 0.05 * max(hi - lo)
     lo, hi = lo - pad, hi + pad
-    views = [_View("top (x right, y up)", 0, 1, 2, lo, hi, size)]
+    views = [_View("top (x right, y up)", 0, 1, 2, lo, hi, size, planar=scene.dimension == 2)]
     if scene.dimension == 3:
         views.append(_View("front (x right, z up)", 0, 2, 1, lo, hi, size))
     font = ImageFont.load_default()
@@ -152,4 +164,4 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
 def front_polys_for_depth(polys: list[_Poly]) -> list[_Poly]:
     """Front view looks along +y, so bodies with smaller y are nearer: flip y for the depth sort
     only (the projection uses x and z, which are unchanged)."""
-    return [_Poly(p.name, p.label, p.verts * np.array([1.0, -1.0, 1.0]), p.color) for p in polys]
+    return [_Poly(p.name, p.label, p.verts * np.array([1.0, -1.0, 1.0]), p.color, p.layer) for p in polys]
