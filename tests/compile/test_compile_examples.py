@@ -157,3 +157,34 @@ def test_scene_initial_configuration_satisfies_the_graph_of_s0(path, n0):
         assert all(v is not None for v in values), f.label
         worst = max(violation(c, values) for c in f.body)
         assert worst < 1e-9, (f.label, worst)
+
+
+@pytest.mark.parametrize("path", [ROOT / "examples" / "lab" / "lab1.pntc",
+                                  ROOT / "examples" / "mobile" / "pick_place.pntc"])
+def test_3d_scene_initial_configuration_satisfies_the_graph_of_s0(path):
+    """As for the planar examples, in 3-D (fk with robot bases, SE3 chains, sdist): checked by
+    the nlp layer's independent numpy interpreter with the pinocchio/coal geometry."""
+    if not path.is_file():
+        pytest.skip(f"{path.name} not present")
+    evaluate = pytest.importorskip("gnppdsl.nlp.evaluate")
+    context = pytest.importorskip("gnppdsl.geometry.context")
+    import numpy as np
+
+    from gnppdsl.compile.factory import GraphNLPFactory
+    from gnppdsl.compile.semantics import initial_state
+    from gnppdsl.compile.task import build_task
+
+    problem = _load(path)
+    task = build_task(problem)
+    geo = context.GeometryContext(problem.scene)
+    fac = GraphNLPFactory(problem, task, robot_dims=geo.robot_dims)
+    factors = fac.factors([initial_state(task)])
+    assert {f.rule for f in factors} >= {"home", "start", "on"}
+    values = {}
+    for f in factors:
+        for v in f.variables:
+            guess = fac.initial_guess(v)
+            assert guess is not None, v.name
+            values[v] = np.asarray(guess)
+    for f in factors:
+        assert evaluate.factor_violation(f, values, geo) < 1e-9, f.label
