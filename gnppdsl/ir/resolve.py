@@ -1176,6 +1176,11 @@ class RuleResolver:
         params = list(self.d.typed_params(d.params, "a rule", allow_untyped=True, allow_union=True))
         params = self.infer(params, d.pre + d.post)
         scope = {p.name: p.types for p in params}
+        used = _names_in((d.where, d.pre, d.post, d.calls))
+        for p in params:
+            if p.name not in used:
+                self.d.r.warning(p.span, f"parameter '{p.name}' of rule '{d.name.value}' is not used: "
+                                 "the rule is instantiated once per object of its type", "unused")
         where = []
         for lit in d.where:
             x = self.logic.literal(lit, scope)
@@ -1270,6 +1275,21 @@ class RuleResolver:
                         ok = False
             out.append(x)
         return tuple(out) if ok else None
+
+
+def _names_in(x, out: set | None = None) -> set:
+    """Every identifier written in an AST fragment."""
+    out = set() if out is None else out
+    if isinstance(x, ast.Name):
+        out.add(x.value)
+    elif isinstance(x, tuple):
+        for i in x:
+            _names_in(i, out)
+    elif hasattr(x, "__dataclass_fields__"):
+        for f in x.__dataclass_fields__:
+            if f != "span":
+                _names_in(getattr(x, f), out)
+    return out
 
 
 def _template_uses_prime(d: ast.TemplateDecl) -> bool:
@@ -1662,9 +1682,11 @@ class CheckReport:
         parts = [f"{n} {k}{'s' if n != 1 else ''}" for k, n in self.counts.items() if n]
         what = ", ".join(parts) if parts else f"{len(self.files)} file{'s' * (len(self.files) != 1)}"
         n_err = len(self.reporter.errors)
+        n_warn = len(self.reporter.diagnostics) - n_err
+        warn = f", {n_warn} warning{'s' if n_warn != 1 else ''}" if n_warn else ""
         if n_err:
-            return f"{n_err} error{'s' if n_err != 1 else ''} in {what}"
-        return f"ok: {what} checked"
+            return f"{n_err} error{'s' if n_err != 1 else ''}{warn} in {what}"
+        return f"ok: {what} checked{warn}"
 
 
 def expand_paths(paths) -> list[str]:

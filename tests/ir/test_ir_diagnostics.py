@@ -664,3 +664,12 @@ def test_module_exists_but_is_not_used(tmp_path):
     x = at(check(tmp_path, "rule r(o: block) : always => planar.same(pose(o), pose(o))\n"), 15, 30,
            "unknown-module")
     assert x.hint == "add `use planar`"
+
+
+def test_unused_rule_parameter_is_a_warning(tmp_path):
+    (tmp_path / "domain.pntc").write_text(BASE + "rule r(o: block, g: gripper) : always => same(pose(o), pose(o))\n")
+    rep = check_files([str(tmp_path / "domain.pntc")])
+    (w,) = rep.reporter.diagnostics
+    assert (w.severity, w.kind, w.span.line, w.span.column) == ("warning", "unused", 15, 18)
+    assert rep.ok and rep.summary() == "ok: 1 domain checked, 1 warning"
+    assert "warning: parameter 'g' of rule 'r' is not used" in rep.render()
