@@ -338,7 +338,7 @@ class SceneAttr:
 
     name: str
     params: tuple[Signature, ...]
-    space: Space
+    space: Space | None                     # None for `: value` (depends on the object)
     module: str = ""
     span: Span | None = field(**_SPAN)
 
@@ -347,12 +347,13 @@ class SceneAttr:
 class Primitive:
     """`primitive fk(r: object, q: joints, frame: string) : SE3`: a geometry function.
 
-    Trailing `string` parameters are optional (`fk(r, q)` uses the robot's `ee`).
+    Trailing `string` parameters are optional (`fk(r, q)` uses the robot's `ee`). `result` is
+    `Space("object")` for primitives returning a body (`link`), None for `: value`.
     """
 
     name: str
     params: tuple[Signature, ...]
-    result: Space
+    result: Space | None
     module: str = ""
     span: Span | None = field(**_SPAN)
 
