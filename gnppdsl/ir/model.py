@@ -293,7 +293,7 @@ class Signature:
     """A parameter of a template, scene attribute or primitive.
 
     kind: "object" (`o: block`; `type` is the object type, subtypes accepted),
-          "value"  (`a: R[3]`, `p: SE2`, `q: joints`; `space` set), or
+          "value"  (`a: R[3]`, `p: SE2`, `q: joints`, `n: int` -> Space("int"); `space` set), or
           "any"    (`a: value`: any space, the same for every parameter typed `value` in one call),
           "string" (`frame: string`).
     """
