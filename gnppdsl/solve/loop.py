@@ -507,8 +507,9 @@ class _Run:
             # Alg. 1 on the components of G_r; it returns the first infeasible one, so those
             # holding factors violated at G_r's convergence point are searched first.
             violated = set(verdict.violated(self.options.tolerance)) if hasattr(verdict, "violated") else set()
-            comps = sorted(g_r.connected_components(),
-                           key=lambda c: not any(ref in violated for ref in c.factor_refs))
+            comps = sorted(g_r.connected_components(),      # deterministic: no set order
+                           key=lambda c: (not any(ref in violated for ref in c.factor_refs),
+                                          c.steps or (0, 0), min(c.factor_refs)))
             found = None
             for comp in comps:
                 search = find_infeasible_subgraph(comp, (), sw.replace("r", "").replace("g", ""), check=checker,
