@@ -286,6 +286,7 @@ class _Checker:
             if modes.n_factors and any(v not in self.values for v in modes.variables):
                 r0 = self.solve(modes)
                 if not r0.feasible:
+                    self.results[key] = r0
                     return r0          # a relaxation is infeasible, so g is (Property 4.4)
             warm.update({v: self.values[v] for v in g.variables if v in self.values})
             warm.update(interpolate_trajectories(
@@ -293,6 +294,9 @@ class _Checker:
                 lambda v: [x for h in self.graph.graph.neighbors(v) for x in self.graph.graph.neighbors(h)]))
         r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
         run.nlp_calls += 1
+        if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
+            # cut short by the time limit: not a verdict (never a conflict, never stored)
+            raise _TimeUp()
         self.results[key] = r
         if r.feasible:
             self.values.update(r.values)
