@@ -475,6 +475,9 @@ class _Run:
             # no sound conflict, so only this plan is given up
             self.say(f"  plan blocked: {outcome[1]}")
             self.planner.block_plan(plan)
+            self.conflicts.append(Conflict(tuple(PartialState.of(enumerate(s)) for s in plan.states),
+                                           f"blocked plan ({outcome[1]}): " + "; ".join(plan.names), (),
+                                           "plan", "", self.stats.plans, 0))
 
     def evaluate(self, graph: Any, use_db: bool) -> tuple:
         """Algorithm 1 on one plan's graph-NLP, relaxations loose -> tight, the full graph last.
