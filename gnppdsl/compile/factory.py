@@ -233,7 +233,8 @@ class GraphNLPFactory:
         if gr.span == 1 and acc.consulted[1]:
             raise error_at(call.span, f"{where}: a single-state rule cannot use the next "
                                     f"step (')")
-        return tpl.name, tuple((name, args, step - i) for name, args, step in acc.slots), body
+        body, used = _compact_slots(body)
+        return tpl.name, tuple((acc.slots[j][0], acc.slots[j][1], acc.slots[j][2] - i) for j in used), body
 
     def _statements(self, stmts, ctx: _Ctx, acc: _Factor):
         for st in stmts:
@@ -396,7 +397,7 @@ class GraphNLPFactory:
                     return Num(float(_FOLD[fn](*(a.value for a in args))), span=e.span)
                 except (ValueError, ZeroDivisionError, OverflowError):
                     pass
-            return Call(fn, args, span=e.span)
+            return _simplify_pose(Call(fn, args, span=e.span))
         raise error_at(e.span, f"{ctx.where}: unknown function '{fn}'")
 
     # ---- world poses, fk, sdist --------------------------------------------------------
@@ -575,6 +576,56 @@ class GraphNLPFactory:
             return list(home) if len(home) == 3 else None
         pose = getattr(ent, "pose", None) or getattr(ent, "base", None)
         return list(pose) if pose else None
+
+
+# ---- exact pose-algebra simplification ---------------------------------------------------------
+_INV = {"compose_se2": "inv_se2", "compose_se3": "inv_se3"}
+
+
+def _simplify_pose(call: Call):
+    """Cancel a pose with its inverse: inv(A) * (A * B) -> B, A * (inv(A) * B) -> B,
+    inv(inv(A)) -> A. Exact identities of SE2/SE3 (unit quaternions, which the nlp layer
+    enforces); they arise whenever a template relates two frames on one kinematic chain, e.g.
+    a grasp `inv(world(r)) * world(o)` with world(o) = world(r) * pose(o), and removing them
+    keeps forward kinematics out of constraints that do not depend on it."""
+    fn, args = call.fn, call.args
+    if fn in ("inv_se2", "inv_se3") and isinstance(args[0], Call) and args[0].fn == fn:
+        return args[0].args[0]
+    inv = _INV.get(fn)
+    if inv is None:
+        return call
+    a, b = args
+    if isinstance(b, Call) and b.fn == fn:
+        inner_a, inner_b = b.args
+        if isinstance(a, Call) and a.fn == inv and a.args[0] == inner_a:
+            return inner_b
+        if isinstance(inner_a, Call) and inner_a.fn == inv and inner_a.args[0] == a:
+            return inner_b
+    return call
+
+
+def _compact_slots(body):
+    """Renumber slots in order of first use and report which old slots survive (a
+    simplification may have removed every use of a variable)."""
+    order: dict[int, int] = {}
+
+    def walk(node):
+        if isinstance(node, Slot):
+            if node.index not in order:
+                order[node.index] = len(order)
+            return Slot(order[node.index], span=node.span)
+        if isinstance(node, tuple):
+            return tuple(walk(x) for x in node)
+        if isinstance(node, (Call, Vec, Index, Constraint)):
+            kw = {}
+            for name in node.__dataclass_fields__:
+                if name != "span":
+                    kw[name] = walk(getattr(node, name))
+            return type(node)(**kw, span=node.span)
+        return node
+
+    new = walk(body)
+    return new, tuple(sorted(order, key=order.get))
 
 
 # ---- small numeric pose algebra for warm starts -----------------------------------------------

@@ -40,6 +40,9 @@ def _problem():
                 Constraint(With(Call("sdist", (Call("link", (P("r"), Str("hand"))), P("o"))),
                                 ((CVar("q", (P("r"),)), Index(P("t"), IterVar("k"))),)),
                            ">=", Num(0.01)),)),), frozenset({"traj", "collision"})),
+        "t.above": m.Template("t.above", (sig_o("r"),), (
+            Constraint(Index(Call("pos_se3", (Call("world", (P("r"),)),)), Num(2)), ">=", Num(0.0)),),
+            frozenset({"robot"})),
         "t.limits": m.Template("t.limits", (sig_v("q"), sig_v("lo"), sig_v("hi")),
                                (Constraint(P("lo"), "<=", P("q")), Constraint(P("q"), "<=", P("hi"))),
                                frozenset({"robot"})),
@@ -55,6 +58,7 @@ def _problem():
                (call("t.path_clear", P("r"), P("o"), CVar("path", (P("r"),))),)),
         m.Rule("limits", (tp("r", "arm"),), "always", (), (),
                (call("t.limits", CVar("q", (P("r"),)), Call("joint_min", (P("r"),)), Call("joint_max", (P("r"),))),)),
+        m.Rule("above", (tp("r", "arm"),), "initial", (), (), (call("t.above", P("r")),)),
         m.Rule("held", (tp("o", "block"), tp("r", "arm")), "state",
                (m.StateLit("parent", (P("o"),), P("r")),), (), (call("t.grasp", P("o"), P("r")),)),
     )
@@ -80,8 +84,11 @@ def test_links_fk_with_and_joint_dimensions():
     task = build_task(problem)
     fac = GraphNLPFactory(problem, task, robot_dims=_dims)
     states = plan_states(task, [0])          # pick(b, r, tab)
+    base = Vec(tuple(Num(x) for x in BASE))
     factors = fac.factors(states)
-    assert sorted((f.rule, f.step) for f in factors) == [("held", 1), ("limits", 0), ("limits", 1), ("motion", 0)]
+    assert sorted((f.rule, f.step) for f in factors) == [("above", 0), ("held", 1), ("limits", 0), ("limits", 1), ("motion", 0)]
+    above = next(f for f in factors if f.rule == "above")
+    assert above.body[0].lhs == Index(Call("pos_se3", (Call("fk", (Obj("r"), Slot(0), Str("tcp"), base)),)), Num(2))
     motion = next(f for f in factors if f.rule == "motion")
     path, pose = motion.variables          # the block's world pose = table * pose(b)@0
     assert pose.name == "pose(b)@0" and pose.dim == 7
@@ -97,12 +104,16 @@ def test_links_fk_with_and_joint_dimensions():
     # joint limits folded from robot_dims
     lim = next(f for f in factors if f.rule == "limits")
     assert lim.variables[0].dim == 3 and lim.body[0].lhs == Vec((Num(-1.0), Num(-2.0), Num(-3.0)))
-    # the held block's world pose goes through fk of the default end effector `tcp`
+    # the held block's world pose is fk(r, q(r)) * pose(b); the grasp relates it to fk(r, q(r))
+    # itself, so inv(fk) * (fk * pose(b)) cancels to pose(b): no q(r), no fk in the body,
+    # but the chain fact parent(b) = r read on the way stays in the generator
     held = next(f for f in factors if f.rule == "held")
-    assert sorted(v.name for v in held.variables) == ["pose(b)@1", "q(r)@1"]
-    fks = [n for n in _walk(held.body) if isinstance(n, Call) and n.fn == "fk"]
-    assert fks and all(n.args[2] == Str("tcp") and n.args[3] == base for n in fks)
+    assert [v.name for v in held.variables] == ["pose(b)@1"]
+    assert held.body[0].lhs == Call("pos_se3", (Slot(0),))
     assert [task.partial_state_str(p) for p in held.generator] == ["{parent(b) = r}"]
+    # elsewhere fk gets the default end effector `tcp` and the robot base
+    fks = [n for f in factors for n in _walk(f.body) if isinstance(n, Call) and n.fn == "fk"]
+    assert fks and all(n.args[3] == base for n in fks)
     # warm start of a joints variable: the home configuration does not fit nq = 3 -> midpoint
     assert fac.initial_guess(lim.variables[0]) == [0.0, 0.0, 0.0]
 
