@@ -4,11 +4,13 @@ GNPP, repeated until a plan's graph-NLP is feasible:
   1. the logic planner proposes the shortest plan <s_0 ... s_n> not excluded by any conflict;
   2. the factory builds its graph-NLP G;
   3. (switch g) if G contains a subgraph known to be infeasible, that is the conflict (no NLP);
-     otherwise Algorithm 1 (`gnppdsl.nlp.subgraph.find_infeasible_subgraph`) solves the
-     relaxations loose -> tight and the full graph last (switches t, r, n); every feasibility
-     check goes through `_Checker`, which answers from the database of solved subgraphs
-     (switch g), solves trajectories after the mode switches (Appendix C), counts NLPs and
-     enforces the time limit;
+     otherwise `_Run.evaluate` runs Algorithm 1: relaxations loose -> tight (switch r), the
+     full graph last; an infeasible relaxed graph is searched component by component with the
+     double binary search on time (t) and the convergence heuristic (n), via
+     `gnppdsl.nlp.subgraph.find_infeasible_subgraph`, then shrunk to the subgraph induced by
+     the violated factors' variables (n). Every feasibility check goes through `_Checker`,
+     which answers from the database of solved subgraphs (switch g), solves trajectories after
+     the mode switches (Appendix C), counts NLPs and enforces the time limit;
   4. feasible: the solution is re-checked independently (numpy evaluation of every factor of
      the full graph, `gnppdsl.nlp.evaluate`) and returned; infeasible: the subgraph is mapped to
      partial states <p_0 ... p_L> and added to the planner as a conflict (Sec. VII).
