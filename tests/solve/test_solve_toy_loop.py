@@ -155,3 +155,31 @@ def test_a_solution_failing_the_independent_recheck_is_not_returned(monkeypatch)
     res = solve_compiled(occupied_problem(), SolveOptions(time_limit=60, max_horizon=6))
     assert res.status == SOLVER_FAILURE and not res.solved
     assert "independent re-check" in res.message
+
+
+def test_a_failed_joint_solve_of_feasible_components_is_never_a_conflict(monkeypatch):
+    """Property 4.5: if every component of a relaxed graph is feasible, so is the graph. A
+    solver that fails on the whole (here: forced to) must not produce a conflict."""
+    from gnppdsl.nlp.feasibility import FeasibilityResult
+    from gnppdsl.solve import loop
+
+    real = loop._Checker.solve
+    failed = []
+
+    def flaky(self, g):
+        if g.name == "G[no_col_traj]" and g.signature() not in self.results:
+            failed.append(g.name)
+            r = FeasibilityResult(False, {}, {ref: 1.0 for ref in g.factor_refs}, 1.0, 1.0, 0.0, 0, "forced", 1)
+            self.results[g.signature()] = r
+            return r
+        return real(self, g)
+
+    monkeypatch.setattr(loop._Checker, "solve", flaky)
+    messages = []
+    compiled = occupied_problem()
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=6),
+                         progress=messages.append)
+    assert failed and res.solved and res.stats.N == 4
+    assert any("components feasible" in m for m in messages)
+    assert [c.text for c in res.conflicts] == ["{parent(b1) = target, parent(b2) = s2}"]
+    check_solution(compiled, res)
