@@ -1,1 +1,27 @@
-"""gnppdsl.solve"""
+"""gnppdsl.solve: the Graph-NLP Planner loop (paper 000, Fig. 3), the One-way baseline, results.
+
+    solve_problem(problem_or_path, options=None, **overrides) -> Result
+    load_and_compile(paths) -> Compiled;  solve_compiled(compiled, options) -> Result
+    SolveOptions, Result, brute_force (reference enumeration for tests)
+
+Names are loaded lazily so that importing a submodule stays cheap.
+"""
+from __future__ import annotations
+
+__all__ = ["solve_problem", "solve_compiled", "load_and_compile", "compile_problem", "SolveOptions",
+           "Compiled", "Result", "brute_force"]
+
+_WHERE = {
+    "solve_problem": "gnppdsl.solve.loop", "solve_compiled": "gnppdsl.solve.loop",
+    "load_and_compile": "gnppdsl.solve.loop", "compile_problem": "gnppdsl.solve.loop",
+    "SolveOptions": "gnppdsl.solve.loop", "Compiled": "gnppdsl.solve.loop",
+    "Result": "gnppdsl.solve.result", "brute_force": "gnppdsl.solve.brute",
+}
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        import importlib
+
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'gnppdsl.solve' has no attribute {name!r}")
