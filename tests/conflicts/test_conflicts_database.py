@@ -236,3 +236,33 @@ def test_object_geometry_is_part_of_factor_identity():
     other_scene = SubgraphDatabase(object_key=shapes_b.get)
     other_scene.infeasible = db.infeasible               # records learned with scene A
     assert other_scene.lookup([sd(3)]) is None            # b1 has another shape: not reused
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+def _world(n_steps: int):
+    fs = []
+    for i in range(n_steps):
+        fs += [no_overlap(i), at_spot("b1", i, (0.0, 0.0), PARENT_B1, 0), grasp("b2", i, PARENT_B2, 2)]
+        if i + 1 < n_steps:
+            fs += [same("b1", i, 0), same("b2", i, 1, PARENT_B2)]
+    return fs
+
+
+def _shift(f, d):
+    from dataclasses import replace as dc_replace
+
+    return dc_replace(f, step=f.step + d, variables=tuple(dc_replace(v, step=v.step + d) for v in f.variables))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 5), st.data())
+def test_every_subset_is_contained_at_any_time_shift(n_steps, data):
+    world = _world(n_steps)
+    subset = data.draw(st.lists(st.sampled_from(world), min_size=1, max_size=6, unique=True))
+    shift = data.draw(st.integers(0, 7))
+    assert contains(semantic_graph(world), semantic_graph([_shift(f, shift) for f in subset]))
+    # and a factor the world does not have is never "contained"
+    alien = at_spot("b1", 0, (9.0, 9.0), PARENT_B1, 0)
+    assert not contains(semantic_graph(world), semantic_graph(subset + [alien]))
