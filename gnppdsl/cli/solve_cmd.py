@@ -7,6 +7,8 @@ Heavy imports (casadi, clingo, the solver) happen inside `run`, so `gnpp --help`
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     progress = None
     if args.verbose and not args.quiet:
         def progress(msg: str) -> None:
-            print(msg, flush=True)
+            emit(msg)
     result = solve_compiled(compiled, options, progress=progress)
     if args.json:
         try:
@@ -64,10 +66,10 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise UserError(f"--json {args.json}: {exc.strerror or exc}") from None
     if args.quiet:
-        print(f"{result.problem}: {'solved' if result.solved else result.status}"
-              + (f", N = {result.stats.N}" if result.solved else f": {result.message}"))
+        emit(f"{result.problem}: {'solved' if result.solved else result.status}"
+             + (f", N = {result.stats.N}" if result.solved else f": {result.message}"))
     else:
-        print(result.summary())
+        emit(result.summary())
     if args.render and result.solved:
         _render(compiled, result, args.render)
     if not result.solved:
@@ -79,4 +81,14 @@ def _render(compiled, result, directory: str) -> None:
     from gnppdsl.solve.keyframes import render_solution
 
     files = render_solution(compiled, result, directory)
-    print(f"rendered {len(files)} keyframes to {directory}")
+    emit(f"rendered {len(files)} keyframes to {directory}")
+
+
+def emit(text: str) -> None:
+    """Print to stdout; a closed pipe (`gnpp solve ... | head`) silences further output
+    instead of ending in a traceback."""
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
