@@ -14,10 +14,10 @@ Atoms
   is the plain sequential encoding.
 - costs: `#minimize` over `cost(O,C)` and pair costs, active only with external `minimize_cost`.
 
-Conflicts (paper 000, Prop. 7.1) and blocked plans are separate step-parameterised programs
-(`conflict_program`, `block_program`): a constraint over the step parameter t must be grounded
-for every existing and every future step, because a rule grounded once does not see atoms of
-later steps.
+Conflicts (paper 000, Prop. 7.1) are separate step-parameterised programs (`conflict_program`):
+a constraint over the step parameter t must be grounded for every existing and every future
+step, because a rule grounded once does not see atoms of later steps. (Blocked plans refer to
+fixed steps only; the planner adds them as nogoods through clingo's backend.)
 """
 from __future__ import annotations
 
@@ -27,6 +27,8 @@ from gnppdsl.compile.sas import PartialState, SASTask
 
 _RULES_BASE = """\
 #program base.
+#defined mutex/4.
+#defined unreachable/2.
 #external allow_idle.
 #external minimize_cost.
 holds(V,X,0) :- init(V,X).
@@ -48,6 +50,8 @@ changed(V,t) :- fires(E,t), ceff(E,_,V,_).
 :- fires(E,t), fires(F,t), clash(E,F).
 :- fires(E,t), uclash(E).
 holds(V,X,t) :- holds(V,X,t-1), svar(V), not changed(V,t).
+:- mutex(V,X,W,Y), holds(V,X,t), holds(W,Y,t).
+:- unreachable(V,X), holds(V,X,t).
 #minimize { C@0,t,op : occurs(O,t), cost(O,C), minimize_cost }.
 #minimize { C@0,t,pair : occurs(P,t-1), occurs(O,t), pcost(P,O,C), minimize_cost }.
 #minimize { C@0,t,first : occurs(O,t), pcost0(O,C), t = 1, minimize_cost }.
@@ -130,11 +134,23 @@ def task_facts(task: SASTask) -> str:
     return "\n".join(out) + "\n"
 
 
-def encode_task(task: SASTask, standalone: bool = False) -> str:
+def mutex_facts(task: SASTask) -> str:
+    """h^2 state invariants as facts (see `gnppdsl.logic.mutex`): they only cut unreachable
+    states, but make proofs of "no plan of length n" much faster."""
+    from gnppdsl.logic.mutex import mutexes
+
+    unreachable, pairs = mutexes(task)
+    out = ["% h^2 invariants: facts never reached, pairs of facts never true together"]
+    out += [f"unreachable({v},{x})." for v, x in unreachable]
+    out += [f"mutex({v},{x},{w},{y})." for (v, x), (w, y) in pairs]
+    return "\n".join(out) + "\n"
+
+
+def encode_task(task: SASTask, standalone: bool = False, invariants: bool = True) -> str:
     """The complete ASP program for `task` (facts + generic incremental rules).
 
-    With `standalone=True` the text starts with `#include <incmode>.` so that plain
-    `clingo FILE` finds a shortest plan.
+    With `standalone=True` the text starts with `#include <incmode>.` (the clingo binary then
+    finds a shortest plan by itself). `invariants` adds the h^2 mutexes.
     """
     _check_task(task)
     parts = []
@@ -142,6 +158,7 @@ def encode_task(task: SASTask, standalone: bool = False) -> str:
         parts.append(f"% {task.name}: run with `clingo FILE` (incremental mode)\n#include <incmode>.\n")
     parts.append(_RULES_BASE)
     parts.append(task_facts(task))
+    parts.append(mutex_facts(task) if invariants else "% (no invariants)\n")
     parts.append(_RULES_AXIOMS.format(T=0))
     parts.append(_RULES_STEP)
     parts.append(_RULES_AXIOMS.format(T="t"))
@@ -165,19 +182,6 @@ def conflict_program(name: str, seq: Sequence[PartialState]) -> str:
         body.extend(f"holds({v},{x},{tt})" for v, x in p.facts)
     body.extend(["not idle(t)", f"t >= {L}"])
     return f"#program {name}(t).\n:- {', '.join(body)}.\n"
-
-
-def block_program(name: str, ops: Sequence[int]) -> str:
-    """`#program NAME(t).` forbidding exactly the plan `ops` (ground it for t = n and n + 1).
-
-    At t = n the plan is blocked when n is the queried horizon; at t = n + 1 when the step
-    after the plan is idle (cheapest-plan mode or a cut horizon).
-    """
-    n = len(ops)
-    occ = [f"occurs({o},{i})" for i, o in enumerate(ops, start=1)]
-    r1 = ", ".join(occ + ["query(t)", f"t = {n}"])
-    r2 = ", ".join(occ + ["idle(t)", f"t = {n + 1}"])
-    return f"#program {name}(t).\n:- {r1}.\n:- {r2}.\n"
 
 
 def _check_task(task: SASTask) -> None:

@@ -70,6 +70,27 @@ def test_enumeration_is_complete_ordered_and_without_duplicates():
     assert checked > 200    # the random tasks do have plans
 
 
+def test_enumeration_respects_conflicts_and_blocks_added_midway():
+    """Plans cached from one solve call are re-checked against later conflicts and blocks."""
+    seen = 0
+    for rng, task, conflicts in random_cases(13, 15):
+        H = 4
+        planner = IncrementalPlanner(task)
+        first = [planner.next_plan(max_horizon=H) for _ in range(3)]
+        first = [r.plan.operators for r in first if r.found]
+        remaining = sorted(all_plans(task, H) - set(first))
+        if len(remaining) < 2:
+            continue
+        blocked = remaining[-1]
+        planner.block_plan(blocked)
+        planner.add_conflicts(conflicts)
+        rest = [p.operators for p in enumerate_all(planner, H)]
+        assert len(rest) == len(set(rest))
+        assert set(rest) == all_plans(task, H, conflicts) - set(first) - {blocked}
+        seen += len(rest)
+    assert seen > 100
+
+
 def test_conflicts_added_after_grounding_constrain_existing_and_future_steps():
     for rng, task, conflicts in random_cases(5, 10):
         H = 4
