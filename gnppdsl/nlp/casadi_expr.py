@@ -71,6 +71,7 @@ class CompiledBody:
     kinds: tuple[str, ...]          # "eq" | "ineq", one per row of h
     n_params: int
     symbolic: str                   # "SX" | "MX"
+    primitives: frozenset[str] = frozenset()   # geometry primitives used (fk, sdist, sdist2)
 
     @property
     def n_rows(self) -> int:
@@ -438,4 +439,4 @@ class BodyCompiler:
         out = ca.vertcat(*rows) if rows else S(0, 1)
         fname = "h_" + "".join(ch if ch.isalnum() else "_" for ch in name)
         f = ca.Function(fname, [*slots, p], [out])
-        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX")
+        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims))

@@ -218,3 +218,18 @@ def test_assembled_nlp_cache_is_bounded():
     for k in range(4):
         assert s.solve(g.time_slice(k, k + 1)).feasible
     assert len(s._nlps) == 2
+
+
+@pytest.mark.parametrize("n,feasible", [(2, True), (3, False)])
+def test_early_stop_monitor_same_verdicts(n, feasible):
+    """The iteration monitor (stop when the real rows hold / on stalls) changes run lengths,
+    never verdicts; a stopped feasible run returns a point the numpy checker accepts."""
+    vs, fs = discs(n)
+    g = GraphNLP(fs)
+    for early in (True, False):
+        s = FeasibilitySolver(options=SolverOptions(early_stop=early, stall_iterations=10))
+        r = s.solve(g)
+        assert r.feasible is feasible
+        assert (max_violation(fs, r.values)[0] <= TOL) is feasible
+        if early and feasible:
+            assert r.status == "User_Requested_Stop"
