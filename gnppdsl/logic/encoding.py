@@ -27,8 +27,11 @@ from gnppdsl.compile.sas import PartialState, SASTask
 
 _RULES_BASE = """\
 #program base.
-#defined mutex/4.
-#defined unreachable/2.
+% predicates a task may leave empty
+#defined svar/1. #defined dvar/1. #defined goal/2. #defined op/1. #defined cost/2. #defined pre/3.
+#defined eff/3. #defined ceff/4. #defined cond/3. #defined clash/2. #defined uclash/1.
+#defined pcost/3. #defined pcost0/2. #defined axiom/3. #defined acond/3.
+#defined mutex/4. #defined unreachable/2.
 #external allow_idle.
 #external minimize_cost.
 holds(V,X,0) :- init(V,X).
@@ -79,9 +82,7 @@ def task_facts(task: SASTask) -> str:
     add("% variables")
     for i, var in enumerate(task.variables):
         kind = "dvar" if var.is_derived else "svar"
-        add(f"{kind}({i}).  % {var.name}: {', '.join(var.values)}")
-        for x in range(len(var.values)):
-            add(f"val({i},{x}).")
+        add(f"{kind}({i}).  % {var.name}: {', '.join(f'{x}={n}' for x, n in enumerate(var.values))}")
     add("% initial state (state variables) and goal")
     for i, x in enumerate(task.initial):
         if not task.variables[i].is_derived:
