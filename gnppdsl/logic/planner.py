@@ -93,18 +93,6 @@ class PlannerStats:
         return sum(1 for name, _ in self.grounded_parts if name == program)
 
 
-@dataclass
-class _Persistent:
-    """A step-parameterised program grounded for t in [first, last] (last None: all t)."""
-
-    name: str
-    first: int = 0
-    last: int | None = None
-
-    def covers(self, t: int) -> bool:
-        return t >= self.first and (self.last is None or t <= self.last)
-
-
 class IncrementalPlanner:
     """Shortest plans, plan enumeration and cheapest plans for one SAS+ task.
 
@@ -126,7 +114,7 @@ class IncrementalPlanner:
         self.blocked: list[tuple[int, ...]] = []
         self._conflict_set: set[tuple[PartialState, ...]] = set()
         self._blocked_set: set[tuple[int, ...]] = set()
-        self._persistent: list[_Persistent] = []
+        self._step_programs: list[str] = []   # grounded for every step t (conflicts)
         self._waiting_blocks: dict[int, list[tuple[tuple[int, ...], str]]] = {}
         self._cache: list[Plan] = []          # further plans of the last solve (next_plan)
         self._cache_key: tuple[int, int] = (-1, 0)   # (horizon, conflicts known) of the cache
@@ -153,18 +141,18 @@ class IncrementalPlanner:
     def _extend_to(self, h: int) -> None:
         for t in range(self._horizon + 1, h + 1):
             parts = [("step", (t,)), ("check", (t,))]
-            parts += [(p.name, (t,)) for p in self._persistent if p.covers(t)]
+            parts += [(name, (t,)) for name in self._step_programs]
             self._ground(parts)
             self._horizon = t
             for ops, last in self._waiting_blocks.pop(t, ()):
                 self._add_block(ops, last, t)
 
-    def _add_persistent(self, prog: _Persistent, text: str) -> None:
-        self._ctl.add(prog.name, ["t"], text)
-        self._persistent.append(prog)
-        now = [(prog.name, (t,)) for t in range(0, self._horizon + 1) if prog.covers(t)]
-        if now:
-            self._ground(now)
+    def _add_step_program(self, name: str, text: str) -> None:
+        """Add `#program name(t)`, ground it for t = 0..horizon in one call, and for every
+        later step together with `step(t)`."""
+        self._ctl.add(name, ["t"], text)
+        self._step_programs.append(name)
+        self._ground([(name, (t,)) for t in range(0, self._horizon + 1)])
 
     # ---- constraints -------------------------------------------------------------------
     def add_conflict(self, seq: Sequence[PartialState]) -> bool:
@@ -177,7 +165,7 @@ class IncrementalPlanner:
         if seq in self._conflict_set:
             return False
         name = f"conflict_{len(self.conflicts)}"
-        self._add_persistent(_Persistent(name), conflict_program(name, seq))
+        self._add_step_program(name, conflict_program(name, seq))
         self.conflicts.append(seq)
         self._conflict_set.add(seq)
         return True
