@@ -253,7 +253,7 @@ class FeasibilitySolver:
             n += v.dim
         index = {v: i for i, v in enumerate(variables)}
         compiled: list[tuple[FactorRef, CompiledBody, np.ndarray]] = []
-        for r, f in graph.iter_factor_vars():
+        for r, f in graph.iter_factors():
             cb, p = self.compiler.compile(f)
             compiled.append((r, cb, p))
         # SX assembly inlines every factor (fastest for small bodies); MX keeps each factor a

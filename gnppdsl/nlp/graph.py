@@ -190,6 +190,6 @@ class GraphNLP:
         m.graph.remove_nodes_from([n for n in list(m.graph) if m.graph.degree(n) == 0])
         return m
 
-    def iter_factor_vars(self) -> Iterator[tuple[FactorRef, FactorInstance]]:
+    def iter_factors(self) -> Iterator[tuple[FactorRef, FactorInstance]]:
         for r in self.factor_refs:
             yield r, self.factor(r)

@@ -25,11 +25,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Sequence
 
+import numpy as np
+
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.nlp.feasibility import FeasibilityResult, FeasibilitySolver
 from gnppdsl.nlp.graph import GraphNLP
 
-CheckResult = "bool | FeasibilityResult"
 Check = Callable[[GraphNLP], "bool | FeasibilityResult"]
 
 
@@ -98,6 +99,17 @@ class _Checker:
 
 def _ok(r: bool | FeasibilityResult) -> bool:
     return r.feasible if isinstance(r, FeasibilityResult) else bool(r)
+
+
+def _free_value(v: VarInstance, guess) -> np.ndarray:
+    """A value for a variable no factor constrains: its guess (or 0, identity quaternions),
+    clipped to its bounds."""
+    x = np.zeros(v.dim) if guess is None else np.asarray(guess, float).reshape(-1).copy()
+    if guess is None and v.space == "SE3":
+        x.reshape(max(v.waypoints, 1), -1)[:, 6] = 1.0
+    lo = -np.inf if v.lower is None else np.resize(np.asarray(v.lower, float), v.dim)
+    hi = np.inf if v.upper is None else np.resize(np.asarray(v.upper, float), v.dim)
+    return np.clip(x, lo, hi)
 
 
 def binary_search_time(graph: GraphNLP, is_feasible: Callable[[GraphNLP], bool]
@@ -194,6 +206,9 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
                 g_s = convergence_heuristic(g_s, r, checker, tol)
             return SearchResult(g_s, rule.name, rng, stats=stats)
         if rule is FULL:
+            for v in graph.variables:          # unconstrained vertices: any value in bounds
+                if v not in values and graph.graph.degree(v) == 0:
+                    values[v] = _free_value(v, graph.initial_guess.get(v))
             covered = all(v in values for v in graph.variables)
             return SearchResult(None, None, None, values, complete and covered, stats)
     raise AssertionError("unreachable: the full graph is always the last rule")

@@ -15,7 +15,7 @@ def test_bipartite_structure_and_labels():
     g = GraphNLP(fs)
     assert nx.is_bipartite(g.graph)
     assert g.n_factors == 6 and set(g.variables) == set(vs)
-    for r, f in g.iter_factor_vars():
+    for r, f in g.iter_factors():
         assert set(g.neighbours(r)) == set(f.variables)
         assert g.graph.nodes[r]["label"] == f.template
     assert g.graph.nodes[vs[0]]["label"] == "pose(b0)"

@@ -162,3 +162,12 @@ def test_injected_check_with_bools_counts_and_heuristic_solves():
 def test_switches_validated():
     with pytest.raises(ValueError):
         find_infeasible_subgraph(GraphNLP(discs(1)[1]), [], "tx")
+
+
+def test_unconstrained_variables_get_values_in_bounds():
+    vs, fs = chain(3, conflict_at=None)
+    free = VarInstance("q", ("r",), 1, "joints", 2, lower=(0.5, -1.0), upper=(1.0, 1.0))
+    g = GraphNLP.from_factors(fs, [free])
+    res = find_infeasible_subgraph(g, [], "trn")
+    assert res.feasible and res.complete_values
+    assert list(res.values[free]) == [0.5, 0.0]
