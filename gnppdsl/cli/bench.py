@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("paths", nargs="*", default=["examples/planar"], metavar="PATH",
                         help="problem files or directories of them (default: examples/planar)")
     parser.add_argument("--algorithms", default=DEFAULT_ALGORITHMS,
-                        help=f"comma-separated: oneway, gnpp, gnpp_<switches> (default: {DEFAULT_ALGORITHMS})")
+                        help=f"comma-separated: oneway, gnpp, gnpp_<switches>, rlgp[_<switches>] (default: {DEFAULT_ALGORITHMS})")
     parser.add_argument("--seeds", type=int, default=3, help="runs per algorithm and problem (seeds 0..N-1)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="seconds per run")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
@@ -43,7 +43,8 @@ class AlgorithmSpec:
     def title(self) -> str:
         if self.algorithm == "oneway":
             return "One-way"
-        return f"GNPP_{self.switches}" if self.switches else "GNPP"
+        name = "R-LGP" if self.algorithm == "rlgp" else "GNPP"
+        return f"{name}_{self.switches}" if self.switches else name
 
 
 def parse_algorithms(text: str) -> list[AlgorithmSpec]:
@@ -57,11 +58,11 @@ def parse_algorithms(text: str) -> list[AlgorithmSpec]:
         if low in ("oneway", "one_way"):
             specs.append(AlgorithmSpec(raw, "oneway", ""))
             continue
-        m = re.fullmatch(r"gnpp(?:_([trng]*))?", low)
-        if not m or (m.group(1) is not None and len(set(m.group(1))) != len(m.group(1))):
+        m = re.fullmatch(r"(gnpp|rlgp)(?:_([trng]*))?", low)
+        if not m or (m.group(2) is not None and len(set(m.group(2))) != len(m.group(2))):
             raise UserError(f"--algorithms: unknown algorithm '{raw}' "
-                            f"(use oneway, gnpp or gnpp_<subset of trng>, e.g. gnpp_trn)")
-        specs.append(AlgorithmSpec(raw, "gnpp", m.group(1)))
+                            f"(use oneway, gnpp, rlgp or gnpp_<subset of trng>, e.g. gnpp_trn)")
+        specs.append(AlgorithmSpec(raw, m.group(1), m.group(2)))
     if not specs:
         raise UserError("--algorithms: no algorithm given")
     return specs

@@ -14,11 +14,12 @@ import sys
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("paths", nargs="+", metavar="PROBLEM",
                         help="the problem file (.pntc); a domain file may be given before it")
-    parser.add_argument("--algorithm", choices=("gnpp", "oneway"), default=None,
-                        help="Graph-NLP Planner (default) or the One-way baseline "
-                             "(enumerate plans by length, block only the failed plan)")
+    parser.add_argument("--algorithm", choices=("gnpp", "oneway", "rlgp"), default=None,
+                        help="Graph-NLP Planner (default), the One-way baseline (enumerate plans by "
+                             "length, block only the failed plan), or rlgp: GNPP with the problem's "
+                             "reachability graph (travel costs for the plan choice, trajectory warm starts)")
     parser.add_argument("--switches", default=None, metavar="SW",
-                        help="subset of 'trng' for gnpp: t = binary search on time, r = relaxations, "
+                        help="subset of 'trng' for gnpp/rlgp: t = binary search on time, r = relaxations, "
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")

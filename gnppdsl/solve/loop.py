@@ -56,7 +56,7 @@ class SolveOptions:
     """How to solve: algorithm, switches, limits. `from_settings` merges the problem's
     `solver { }` settings with command-line overrides (None = keep)."""
 
-    algorithm: str = "gnpp"          # "gnpp" | "oneway"
+    algorithm: str = "gnpp"          # "gnpp" | "oneway" | "rlgp" (GNPP + reachability graph)
     switches: str = "trn"            # subset of "trng" (gnpp only)
     time_limit: float = 60.0
     seed: int = 0
@@ -82,8 +82,8 @@ class SolveOptions:
         return opts.validated()
 
     def validated(self) -> "SolveOptions":
-        if self.algorithm not in ("gnpp", "oneway"):
-            raise UserError(f"algorithm '{self.algorithm}' is not available here (use gnpp or oneway)")
+        if self.algorithm not in ("gnpp", "oneway", "rlgp"):
+            raise UserError(f"algorithm '{self.algorithm}' is not available (use gnpp, oneway or rlgp)")
         if set(self.switches) - set("trng"):
             raise UserError(f"switches '{self.switches}' are not a subset of 'trng'")
         if self.algorithm == "oneway" and self.database:
@@ -93,7 +93,7 @@ class SolveOptions:
         switches = "".join(c for c in "trng" if c in self.switches)
         if self.database and "g" not in switches:
             switches += "g"
-        return replace(self, switches=switches if self.algorithm == "gnpp" else "")
+        return replace(self, switches=switches if self.algorithm != "oneway" else "")
 
 
 @dataclass
@@ -291,8 +291,15 @@ class _Checker:
                     self.results[key] = r0
                     return r0          # a relaxation is infeasible, so g is (Property 4.4)
             warm.update({v: self.values[v] for v in g.variables if v in self.values})
+            todo = [v for v in trajs if v not in self.values]
+            if run.reach:
+                for v in list(todo):
+                    pts = run.reach_warmstart(v, self.values)
+                    if pts is not None:
+                        warm[v] = pts
+                        todo.remove(v)
             warm.update(interpolate_trajectories(
-                [v for v in trajs if v not in self.values], self.values,
+                todo, self.values,
                 lambda v: [x for h in self.graph.graph.neighbors(v) for x in self.graph.graph.neighbors(h)]))
         r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
         run.nlp_calls += 1
@@ -338,6 +345,9 @@ class _Run:
         self.deadline = self.start + options.time_limit
         self.stats = Stats()
         self.conflicts: list[Conflict] = []
+        self.reach: dict[str, tuple[Any, Any]] = {}      # robot -> (ReachabilityGraph, block)
+        if options.algorithm == "rlgp":
+            self.task = self.with_reachability_costs(self.task)
         t0 = time.perf_counter()
         self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
         self.stats.logic_time += time.perf_counter() - t0
@@ -349,6 +359,55 @@ class _Run:
         if "g" in options.switches:
             self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
                                        fingerprint=compiled.fingerprint, object_key=compiled.object_key)
+
+    # -- R-LGP (paper 002) ---------------------------------------------------------------------
+    def with_reachability_costs(self, task: SASTask) -> SASTask:
+        """Build the reachability graph of every `reachability` block (Sec. IV) and return the
+        task with its end-effector travel costs as `pair_costs` (Alg. 1's heuristicCost): the
+        planner then proposes, among the shortest plans, the one with the least travel."""
+        from dataclasses import replace as dc_replace
+
+        from gnppdsl.reach.integration import build_from_problem, pair_costs_from_problem
+
+        problem = self.compiled.problem
+        blocks = tuple(getattr(problem, "reachability", ()) or ())
+        if not blocks:
+            raise UserError(f"algorithm rlgp: problem '{self.compiled.name}' has no `reachability` block")
+        t0 = time.perf_counter()
+        costs: dict = dict(task.pair_costs)
+        for block in blocks:
+            graph = build_from_problem(problem, block.name)
+            self.reach[block.robot] = (graph, block)
+            for pair, c in pair_costs_from_problem(problem, task, graph, block.name).items():
+                costs[pair] = costs.get(pair, 0) + c
+            self.say(f"reachability graph '{block.name}' for {block.robot}: {graph.num_samples} samples")
+        self.stats.reach_time += time.perf_counter() - t0
+        return dc_replace(task, pair_costs=costs)
+
+    def reach_warmstart(self, traj: VarInstance, values: dict) -> np.ndarray | None:
+        """Alg. 1's getWaypoints: the graph's collision-checked path between the trajectory's
+        keyframes, for trajectories a block names in `warmstart` (None: interpolate instead)."""
+        if not traj.args or traj.args[0] not in self.reach or self.remaining() <= 0:
+            return None
+        graph, block = self.reach[traj.args[0]]
+        if not any(w.traj == traj.kind for w in getattr(block, "warmstarts", ())):
+            return None
+        key = keyframe_of(traj, values.keys())
+        by = {(v.key, v.step): v for v in values}
+        a, b = by.get((key, traj.step)), by.get((key, traj.step + 1))
+        if a is None or b is None:
+            return None
+        from gnppdsl.reach.integration import warmstart_waypoints
+
+        t0 = time.perf_counter()
+        try:
+            pts = warmstart_waypoints(graph, values[a], values[b], traj.waypoints)
+        except (ValueError, IndexError):
+            return None
+        finally:
+            self.stats.reach_time += time.perf_counter() - t0
+        pts = np.asarray(pts, float)
+        return pts.reshape(-1) if pts.size == traj.dim else None
 
     # -- helpers -------------------------------------------------------------------------------
     def say(self, msg: str) -> None:
@@ -393,7 +452,8 @@ class _Run:
         if enumerate_:
             res = self.planner.next_plan(time_limit=max(0.0, self.remaining()))
         else:
-            res = self.planner.shortest_plan(time_limit=max(0.0, self.remaining()))
+            res = self.planner.shortest_plan(time_limit=max(0.0, self.remaining()),
+                                             minimize_cost=self.options.algorithm == "rlgp")
         self.stats.logic_time += time.perf_counter() - t0
         return res
 

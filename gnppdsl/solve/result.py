@@ -68,6 +68,7 @@ class Stats:
     nlp_time: float = 0.0             # seconds inside the NLP solver
     logic_time: float = 0.0           # seconds in the logic planner (incl. adding conflicts)
     factory_time: float = 0.0         # seconds building graph-NLPs
+    reach_time: float = 0.0           # seconds building / querying reachability graphs (rlgp)
     total_time: float = 0.0           # wall clock
     cpu_time: float = 0.0             # CPU seconds of this process (the paper's "time")
     plans: int = 0                    # candidate logic plans evaluated
@@ -104,7 +105,10 @@ class Result:
 
     @property
     def algorithm_name(self) -> str:
-        return "One-way" if self.algorithm == "oneway" else f"GNPP_{self.switches}" if self.switches else "GNPP"
+        if self.algorithm == "oneway":
+            return "One-way"
+        name = "R-LGP" if self.algorithm == "rlgp" else "GNPP"
+        return f"{name}_{self.switches}" if self.switches else name
 
     # ---- output ------------------------------------------------------------------------------
     def to_json(self) -> dict:
@@ -157,7 +161,8 @@ class Result:
                 lines.append(f"  ... {len(self.conflicts) - max_conflicts} more (see --json)")
         lines.append(
             f"stats: NLPs {s.nlp_solves} ({s.ipopt_runs} solver runs, {s.nlp_time:.2f} s), logic {s.logic_time:.2f} s, "
-            f"factory {s.factory_time:.2f} s, plans {s.plans}, conflicts {s.conflicts}, "
+            f"factory {s.factory_time:.2f} s, " + (f"reachability {s.reach_time:.2f} s, " if s.reach_time else "")
+            + f"plans {s.plans}, conflicts {s.conflicts}, "
             f"N0 {_opt(s.N0)}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
         )
         if s.db_feasible_hits or s.db_infeasible_hits:
