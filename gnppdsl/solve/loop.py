@@ -472,7 +472,8 @@ class _Run:
             self.planner.block_plan(plan)
         self.stats.logic_time += time.perf_counter() - t0
         c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
-                     relaxation, self.stats.plans, first, subgraph=tuple(sub_factors))
+                     relaxation, self.stats.plans, first, named=names_of(self.task, seq),
+                     subgraph=tuple(sub_factors))
         self.conflicts.append(c)
         self.stats.conflicts += 1
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}")

@@ -34,6 +34,7 @@ class Conflict:
     relaxation: str = ""             # the relaxation in which it was found ("" = full graph)
     plan_index: int = 0              # which candidate plan produced it (1-based)
     at_step: int = 0                 # absolute step of p_0 in that plan
+    named: tuple = ()                # the partial states by name: ((("parent(b1)", "s1"), ...), ...)
     # not serialised: the infeasible subgraph's factor instances (tests re-solve them)
     subgraph: tuple = field(default=(), repr=False, compare=False)
 
@@ -42,6 +43,7 @@ class Conflict:
             "text": self.text,
             "length": len(self.partial_states),
             "partial_states": [[list(f) for f in p.facts] for p in self.partial_states],
+            "named": [[list(f) for f in p] for p in self.named],
             "factors": list(self.factors),
             "source": self.source,
             "relaxation": self.relaxation,

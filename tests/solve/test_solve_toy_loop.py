@@ -98,6 +98,7 @@ def test_json_result(tmp_path: Path):
     assert len(data["steps"]) == 5 and data["steps"][0]["action"] is None
     assert data["steps"][4]["values"]["pose(b1)"][0] == pytest.approx(1.0, abs=0.02)
     assert data["conflicts"][0]["text"] == "{parent(b1) = target, parent(b2) = s2}"
+    assert data["conflicts"][0]["named"] == [[["parent(b1)", "target"], ["parent(b2)", "s2"]]]
     assert data["plan"] == res.plan
 
 
