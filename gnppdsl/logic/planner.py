@@ -138,14 +138,19 @@ class IncrementalPlanner:
         self.stats.ground_calls += 1
         self.stats.grounded_parts.extend(parts)
 
-    def _extend_to(self, h: int) -> None:
+    def _extend_to(self, h: int, deadline: float | None = None) -> bool:
+        """Ground steps up to h; False if the deadline passed first (grounding is not
+        interruptible, so the deadline is checked between steps)."""
         for t in range(self._horizon + 1, h + 1):
+            if deadline is not None and time.perf_counter() >= deadline:
+                return False
             parts = [("step", (t,)), ("check", (t,))]
             parts += [(name, (t,)) for name in self._step_programs]
             self._ground(parts)
             self._horizon = t
             for ops, last in self._waiting_blocks.pop(t, ()):
                 self._add_block(ops, last, t)
+        return True
 
     def _add_step_program(self, name: str, text: str) -> None:
         """Add `#program name(t)`, ground it for t = 0..horizon in one call, and for every
@@ -307,7 +312,8 @@ class IncrementalPlanner:
         while h <= H:
             if deadline is not None and time.perf_counter() >= deadline:
                 return self._timeout(h, start, time_limit), []
-            self._extend_to(h)
+            if not self._extend_to(h, deadline):
+                return self._timeout(h, start, time_limit), []
             self._set_externals(query=h, cut=True, idle=False, minimize=minimize_cost)
             status, found, proven = self._solve(deadline, 1 if minimize_cost else models)
             if status is Status.FOUND:
@@ -359,9 +365,11 @@ class IncrementalPlanner:
         """
         start = time.perf_counter()
         deadline = self._deadline(time_limit)
-        self._extend_to(horizon)
-        self._set_externals(query=horizon, cut=False, idle=True, minimize=True)
-        status, found, proven = self._solve(deadline)
+        if self._extend_to(horizon, deadline):
+            self._set_externals(query=horizon, cut=False, idle=True, minimize=True)
+            status, found, proven = self._solve(deadline)
+        else:
+            status, found, proven = Status.TIMEOUT, [], False
         elapsed = time.perf_counter() - start
         if found:
             plan = self._plan_from(found[-1], shortest=False, optimal=status is Status.FOUND and proven)
@@ -369,7 +377,9 @@ class IncrementalPlanner:
             return PlanResult(Status.FOUND, plan, horizon, elapsed,
                               f"plan of length {len(plan)} and cost {plan.cost}, {note}")
         if status is Status.TIMEOUT:
-            return self._timeout(horizon, start, time_limit)
+            return PlanResult(Status.TIMEOUT, None, horizon, elapsed,
+                              f"time limit of {time_limit:g} s reached before any plan of length "
+                              f"<= {horizon} was found for task {self.task.name}")
         return PlanResult(Status.NO_PLAN, None, horizon, elapsed, self._no_plan_message(horizon))
 
     # ---- messages ----------------------------------------------------------------------
