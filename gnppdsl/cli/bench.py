@@ -152,8 +152,14 @@ def run(args: argparse.Namespace) -> int:
     files = find_problems(args.paths)
     rows: list[dict] = []
     names: list[str] = []
+    skipped: list[str] = []
     for f in files:
-        compiled = load_and_compile([str(f)])
+        try:
+            compiled = load_and_compile([str(f)])
+        except UserError as err:            # one broken problem does not stop the benchmark
+            print(f"gnpp bench: skipping {f}:\n{err}", file=sys.stderr)
+            skipped.append(str(f))
+            continue
         name = compiled.problem.name
         names.append(name)
         for spec in specs:
@@ -162,7 +168,16 @@ def run(args: argparse.Namespace) -> int:
                     compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
                     time_limit=args.time_limit, seed=seed, max_horizon=args.max_horizon,
                 )
-                res = solve_compiled(compiled, options)
+                try:
+                    res = solve_compiled(compiled, options)
+                except UserError as err:
+                    print(f"gnpp bench: {name} {spec.title} seed {seed}: {err}", file=sys.stderr)
+                    rows.append({"problem": name, "algorithm": spec.label, "seed": seed, "status": "error",
+                                 "solved": False, "nlp_solves": 0, "ipopt_runs": 0, "nlp_time": 0.0,
+                                 "logic_time": 0.0, "total_time": 0.0, "cpu_time": 0.0, "plans": 0,
+                                 "conflicts": 0, "db_feasible_hits": 0, "db_infeasible_hits": 0, "N0": None,
+                                 "N": None, "max_violation": None, "message": str(err)})
+                    continue
                 s = res.stats
                 row = {
                     "problem": name, "algorithm": spec.label, "seed": seed, "status": res.status,
@@ -179,7 +194,11 @@ def run(args: argparse.Namespace) -> int:
                     print(f"{name:16s} {spec.title:10s} seed {seed}: {res.status:14s} NLP {s.nlp_solves:4d} "
                           f"cpu {s.cpu_time:6.2f} s wall {s.total_time:6.2f} s  N0 {s.N0} N {s.N}",
                           file=sys.stderr, flush=True)
+    if not names:
+        raise UserError("gnpp bench: no problem could be loaded")
     print(format_table(names, specs, rows))
+    if skipped:
+        print(f"skipped (load errors): {', '.join(skipped)}")
     if args.csv:
         try:
             with open(args.csv, "w", newline="") as fh:
@@ -190,4 +209,4 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise UserError(f"--csv {args.csv}: {exc.strerror or exc}") from None
         print(f"wrote {len(rows)} runs to {args.csv}")
-    return 0
+    return 2 if skipped else 0

@@ -111,3 +111,17 @@ def test_database_file_is_reused_by_a_later_run(capsys, tmp_path):
     assert b["conflicts"][0]["source"] == "database"
     assert b["conflicts"][0]["text"] == a["conflicts"][0]["text"]
     assert b["stats"]["nlp_solves"] < a["stats"]["nlp_solves"] and b["stats"]["N"] == 4
+
+
+@needs_loader
+def test_bench_skips_a_broken_problem_and_says_so(capsys, tmp_path):
+    import shutil
+
+    for f in ("domain.pntc", "p1_one_block.pntc", "p1_one_block.yaml"):
+        shutil.copy(PLANAR / f, tmp_path / f)
+    (tmp_path / "z_broken.pntc").write_text("problem broken for planar_blocks\nobjects { b1 : blok }\n")
+    code = main(["bench", str(tmp_path), "--algorithms", "oneway", "--seeds", "1", "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "p1_one_block" in captured.out and "1/1" in captured.out
+    assert "z_broken.pntc" in captured.out and "unknown type 'blok'" in captured.err
