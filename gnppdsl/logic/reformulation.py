@@ -91,6 +91,6 @@ def forbid_sequence(task: SASTask, seq: Sequence[PartialState], prefix: str | No
 
 def forbid_sequences(task: SASTask, seqs: Iterable[Sequence[PartialState]]) -> SASTask:
     """Forbid several conflicts by iterated reformulation (paper: "iterative reformulation")."""
-    for k, seq in enumerate(seqs):
-        task = forbid_sequence(task, seq, prefix=None)
+    for seq in seqs:
+        task = forbid_sequence(task, seq)       # fresh variable names per conflict
     return task
