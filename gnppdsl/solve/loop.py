@@ -301,6 +301,8 @@ class _Checker:
             warm.update(interpolate_trajectories(
                 todo, self.values,
                 lambda v: [x for h in self.graph.graph.neighbors(v) for x in self.graph.graph.neighbors(h)]))
+        # ipopt's wall-time limit is fixed when a graph's NLP is assembled: give it what is left
+        self.solver.options.time_limit = max(0.05, run.remaining())
         r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
         run.nlp_calls += 1
         if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
