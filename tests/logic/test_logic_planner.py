@@ -246,3 +246,15 @@ def test_empty_plan_and_bad_input():
     # a conflict on the initial state forbids everything
     planner.add_conflict([PartialState(((0, task.initial[0]),))])
     assert planner.shortest_plan(max_horizon=3).status is Status.NO_PLAN
+
+
+def test_blocking_a_plan_before_its_steps_are_grounded():
+    task = tower_task(3)
+    plan = IncrementalPlanner(task).shortest_plan().plan        # the unique plan of length 4
+    fresh = IncrementalPlanner(task)
+    assert fresh.horizon == 0 and fresh.block_plan(plan)
+    res = fresh.shortest_plan()
+    assert len(res.plan) == 6
+    check(task, res.plan)
+    best = fresh.optimal_plan(8).plan                            # idle steps after the plan
+    assert best.operators != plan.operators and best.cost == 6
