@@ -118,13 +118,15 @@ class SubgraphDatabase:
         except sqlite3.DatabaseError as exc:
             raise UserError(f"{path}: not a usable subgraph database ({exc})") from None
         self._conn = conn
-        for feasible, wl, graph, conflict in rows:
-            entry = Entry(
-                SemanticGraph.from_json(json.loads(graph)),
-                bool(feasible),
-                _names_from_json(conflict),
-                wl,
-            )
+        for k, (feasible, wl, graph, conflict) in enumerate(rows):
+            try:
+                entry = Entry(SemanticGraph.from_json(json.loads(graph)), bool(feasible),
+                              _names_from_json(conflict), wl)
+            except (ValueError, KeyError, TypeError) as exc:
+                conn.close()
+                self._conn = None
+                raise UserError(f"{path}: record {k + 1} of domain '{self.scope}' is not readable ({exc}); "
+                                f"remove the file or choose another --db path") from None
             # records written before a dominating one was found are pruned in memory
             self._insert(entry)
         self.stats.loaded = len(rows)

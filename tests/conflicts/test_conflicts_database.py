@@ -266,3 +266,15 @@ def test_every_subset_is_contained_at_any_time_shift(n_steps, data):
     # and a factor the world does not have is never "contained"
     alien = at_spot("b1", 0, (9.0, 9.0), PARENT_B1, 0)
     assert not contains(semantic_graph(world), semantic_graph(subset + [alien]))
+
+
+def test_unreadable_record_is_a_user_error(tmp_path: Path):
+    path = tmp_path / "db.sqlite"
+    with SubgraphDatabase(path, scope="s", fingerprint="f") as db:
+        db.add(chain("b1", 0, 2), True)
+    conn = sqlite3.connect(path)
+    with conn:
+        conn.execute("UPDATE subgraphs SET graph = '{not json'")
+    conn.close()
+    with pytest.raises(UserError, match="record 1 .* not readable"):
+        SubgraphDatabase(path, scope="s", fingerprint="f")
