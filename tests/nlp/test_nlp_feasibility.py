@@ -233,3 +233,11 @@ def test_early_stop_monitor_same_verdicts(n, feasible):
         assert (max_violation(fs, r.values)[0] <= TOL) is feasible
         if early and feasible:
             assert r.status == "User_Requested_Stop"
+
+
+def test_limited_memory_hessian_same_verdicts():
+    for n, feasible in [(2, True), (3, False)]:
+        vs, fs = discs(n)
+        r = FeasibilitySolver(options=SolverOptions(hessian="limited-memory")).solve(GraphNLP(fs))
+        assert r.feasible is feasible
+        assert (max_violation(fs, r.values)[0] <= TOL) is feasible
