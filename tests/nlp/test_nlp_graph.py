@@ -68,3 +68,35 @@ def test_connected_components_and_time_slice():
     assert g.time_slice(0, 6).signature() == g.signature()
     rel = s.relative_labels()
     assert sorted(d["rel_step"] for _, d in rel.nodes(data=True)) == [0, 0, 0, 1, 1]
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 8), seed=st.integers(0, 10_000), tags=st.sets(st.sampled_from(
+    ["time", "collision", "object", "region", "init"])))
+def test_subgraph_invariants_on_random_graphs(n, seed, tags):
+    import random
+    rnd = random.Random(seed)
+    _, fs1 = chain(n, conflict_at=rnd.choice([None, 0]) if n > 0 else None)
+    _, fs2 = discs(rnd.randint(1, 4))
+    g = GraphNLP(fs1 + fs2)
+    xs = [v for v in g.variables if rnd.random() < 0.6]
+    m = g.subgraph(variables=xs)
+    # Definition 4.2: every kept factor has all its variables kept; and every factor of G
+    # whose variables are all kept is kept (the largest such subgraph)
+    assert all(set(m.neighbours(r)) <= set(xs) for r in m.factor_refs)
+    assert {r for r in g.factor_refs if set(g.neighbours(r)) <= set(xs)} == set(m.factor_refs)
+    r = g.apply_relaxation(tags)
+    assert not any(r.factor(x).tags & tags for x in r.factor_refs)
+    assert not any(v.tags & tags for v in r.variables)
+    assert all(set(r.neighbours(x)) == set(r.factor(x).variables) for x in r.factor_refs)
+    comps = r.connected_components()
+    assert sorted(x for c in comps for x in c.factor_refs) == r.factor_refs
+    lo, hi = sorted(rnd.sample(range(n + 1), 2)) if n > 0 else (0, 0)
+    s = g.time_slice(lo, hi)
+    assert all(lo <= v.step <= hi for v in s.variables)
+    assert all(lo <= s.factor(x).step <= s.factor(x).step + s.factor(x).span - 1 <= hi
+               for x in s.factor_refs)
+    assert set(s.graph) <= set(g.graph)
