@@ -49,7 +49,8 @@ class GraphNLP:
             for i, f in enumerate(self.factors):
                 ref = FactorRef(i)
                 graph.add_node(ref, bipartite=1, vertex="factor", label=f.template,
-                               kind=f.template, step=f.step, tags=f.tags)
+                               kind=f.template, template=f.template, step=f.step, span=f.span,
+                               tags=f.tags, generator=f.generator, factor=f)
                 for j, v in enumerate(f.variables):
                     if v not in graph:
                         graph.add_node(v, bipartite=0, vertex="variable", label=v.key,

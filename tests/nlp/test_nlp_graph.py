@@ -18,6 +18,9 @@ def test_bipartite_structure_and_labels():
     for r, f in g.iter_factors():
         assert set(g.neighbours(r)) == set(f.variables)
         assert g.graph.nodes[r]["label"] == f.template
+        d = g.graph.nodes[r]
+        assert (d["template"], d["step"], d["tags"], d["generator"], d["factor"]) == \
+            (f.template, f.step, f.tags, f.generator, f)
     assert g.graph.nodes[vs[0]]["label"] == "pose(b0)"
     assert g.graph.nodes[vs[0]]["kind"] == "pose"
     assert g.graph.edges[FactorRef(3), vs[1]]["slots"] == (1,)
