@@ -18,7 +18,7 @@ from pathlib import Path
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
 CSV_FIELDS = ("problem", "algorithm", "seed", "status", "solved", "nlp_solves", "ipopt_runs", "nlp_time",
               "logic_time", "total_time", "cpu_time", "plans", "conflicts", "db_feasible_hits",
-              "db_infeasible_hits", "N0", "N", "max_violation", "message")
+              "db_infeasible_hits", "reused_solutions", "N0", "N", "max_violation", "message")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=3, help="runs per algorithm and problem (seeds 0..N-1)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="seconds per run")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
+    parser.add_argument("--order", choices=("full_first", "relaxed_first"), default=None,
+                        help="gnpp: solve the full graph-NLP first and search for a conflict only when it "
+                             "fails (full_first, default), or relaxations first (relaxed_first)")
     parser.add_argument("--csv", default=None, metavar="FILE", help="write one row per run")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -167,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
                 options = SolveOptions.from_settings(
                     compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
                     time_limit=args.time_limit, seed=seed, max_horizon=args.max_horizon,
+                    order=args.order,
                 )
                 try:
                     res = solve_compiled(compiled, options)
@@ -175,7 +179,8 @@ def run(args: argparse.Namespace) -> int:
                     rows.append({"problem": name, "algorithm": spec.label, "seed": seed, "status": "error",
                                  "solved": False, "nlp_solves": 0, "ipopt_runs": 0, "nlp_time": 0.0,
                                  "logic_time": 0.0, "total_time": 0.0, "cpu_time": 0.0, "plans": 0,
-                                 "conflicts": 0, "db_feasible_hits": 0, "db_infeasible_hits": 0, "N0": None,
+                                 "conflicts": 0, "db_feasible_hits": 0, "db_infeasible_hits": 0,
+                                 "reused_solutions": 0, "N0": None,
                                  "N": None, "max_violation": None, "message": str(err)})
                     continue
                 s = res.stats
@@ -186,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
                     "logic_time": round(s.logic_time, 4), "total_time": round(s.total_time, 4),
                     "cpu_time": round(s.cpu_time, 4),
                     "plans": s.plans, "conflicts": s.conflicts, "db_feasible_hits": s.db_feasible_hits,
-                    "db_infeasible_hits": s.db_infeasible_hits, "N0": s.N0, "N": s.N,
+                    "db_infeasible_hits": s.db_infeasible_hits, "reused_solutions": s.reused_solutions, "N0": s.N0, "N": s.N,
                     "max_violation": s.max_violation, "message": res.message,
                 }
                 rows.append(row)

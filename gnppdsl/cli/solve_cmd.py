@@ -22,6 +22,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="subset of 'trng' for gnpp/rlgp: t = binary search on time, r = relaxations, "
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
+    parser.add_argument("--order", choices=("full_first", "relaxed_first"), default=None,
+                        help="gnpp/rlgp: solve the full graph-NLP first and search for a conflict only "
+                             "when it fails (full_first, default), or relaxations first (relaxed_first)")
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
     parser.add_argument("--seed", type=int, default=None, help="random seed of the NLP starts")
     parser.add_argument("--db", default=None, metavar="PATH",
@@ -55,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
         compiled.problem.settings,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
+        order=args.order,
     )
     progress = None
     if args.verbose and not args.quiet:

@@ -132,6 +132,22 @@ class GraphNLPFactory:
         self._memo = (key, tuple(out))
         return out
 
+    def world_pose_expr(self, obj: str, states: Sequence[Sequence[int]], step: int
+                        ) -> tuple[object, tuple[VarInstance, ...]]:
+        """The world pose of `obj` in state `step` of <s_0 ... s_n> (SAS+ states, as for
+        `factors`): `world(obj)` expanded along the `frame` declarations of that state's
+        kinematic chain, as a resolved expression whose `Slot(k)` reads the k-th returned
+        variable instance (the form of a factor body). Objects without a frame give their
+        constant scene pose and no variables. Raises a compile error when the chain cannot be
+        expanded (e.g. a cycle). Used to draw keyframes and to report poses of solutions."""
+        full = [derive(self.task, s) for s in states]
+        if not 0 <= step < len(full):
+            raise IndexError(f"step {step} outside the {len(full)} states")
+        acc = _Factor()
+        ctx = _Ctx(full, step, where=f"world({obj}) at step {step}")
+        expr = self._world(obj, ctx, acc, Obj(obj))
+        return expr, tuple(self._var_instance(key, None) for key in acc.slots)
+
     def _factors(self, states) -> list[FactorInstance]:
         states = [derive(self.task, s) for s in states]
         if not states:

@@ -4,11 +4,8 @@ Why here: the renderer (`gnppdsl.geometry.render.render_keyframes`) wants, per s
 entity -> world pose (objects, planar robots) or joint coordinates (URDF robots). World poses
 follow the kinematic chain of each symbolic state, which only the graph-NLP factory knows how
 to expand (`world(o)` along `frame` declarations). We ask the factory to expand `world(o)` at
-step i into a resolved expression over continuous variables and evaluate it with the
-independent numpy interpreter of the nlp layer.
-
-NOTE: the factory has no public "world pose expression" API yet; this uses its internal
-`_world` / `_Ctx` / `_Factor` / `_var_instance` (see the report to the lead).
+step i (`GraphNLPFactory.world_pose_expr`) into a resolved expression over continuous variables
+and evaluate it with the independent numpy interpreter of the nlp layer.
 """
 from __future__ import annotations
 
@@ -18,22 +15,19 @@ import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.compile.sas import PartialState
-from gnppdsl.ir.expr import CVar, Constraint, Num, Obj
+from gnppdsl.ir.expr import CVar, Constraint, Num
 
 
 def world_states(compiled: Any, states: Sequence[Sequence[int]], values: dict) -> list[dict[str, Any]]:
     """[{entity: world pose or joint coordinates}] for s_0 .. s_n."""
-    from gnppdsl.compile import factory as fmod
-    from gnppdsl.compile.semantics import derive
     from gnppdsl.nlp.evaluate import constraint_rows
 
     factory = compiled.factory
     problem = compiled.problem
     scene = problem.scene
-    full = [derive(compiled.task, s) for s in states]
     by_key_step = {(v.key, v.step): v for v in values}
     out: list[dict[str, Any]] = []
-    for i in range(len(full)):
+    for i in range(len(states)):
         st: dict[str, Any] = {}
         for obj in problem.objects:
             if scene is None or scene.entity(obj) is None:
@@ -47,10 +41,7 @@ def world_states(compiled: Any, states: Sequence[Sequence[int]], values: dict) -
             if frame is None:
                 continue                      # fixed at its scene pose
             try:
-                acc = fmod._Factor()
-                ctx = fmod._Ctx(full, i, where=f"world({obj}) at step {i}")
-                expr = factory._world(obj, ctx, acc, Obj(obj))
-                variables = tuple(factory._var_instance(key, None) for key in acc.slots)
+                expr, variables = factory.world_pose_expr(obj, states, i)
             except Exception:                 # noqa: BLE001 - a pose we cannot expand is not drawn
                 continue
             if any(v not in values for v in variables):

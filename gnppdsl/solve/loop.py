@@ -67,6 +67,9 @@ class SolveOptions:
     restarts: int | None = None      # extra random starts after an infeasible verdict (None: nlp default)
     nlp: str = "ipopt"               # casadi plugin: ipopt | sqpmethod
     check_tolerance: float | None = None   # independent re-check threshold (default: tolerance)
+    order: str = "full_first"        # gnpp: "full_first" = solve the plan's graph-NLP, run Alg. 1
+                                     # only when it is infeasible (Fig. 3, step 3); "relaxed_first"
+                                     # = relaxations loose -> tight before the full graph
 
     @staticmethod
     def from_settings(settings: Any = None, **overrides: Any) -> "SolveOptions":
@@ -74,7 +77,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp"):
+                         "database", "max_iter", "nlp", "order"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -90,6 +93,8 @@ class SolveOptions:
             raise UserError("a subgraph database (--db) needs the gnpp algorithm")
         if self.time_limit <= 0:
             raise UserError("the time limit must be positive")
+        if self.order not in ("full_first", "relaxed_first"):
+            raise UserError(f"order '{self.order}' is not available (use full_first or relaxed_first)")
         switches = "".join(c for c in "trng" if c in self.switches)
         if self.database and "g" not in switches:
             switches += "g"
@@ -281,6 +286,10 @@ class _Checker:
         key = g.signature()
         if key in self.results:
             return self.results[key]
+        known = self.known_solution(g)
+        if known is not None:
+            self.results[key] = known
+            return known
         trajs = [v for v in g.variables if TRAJ in v.tags or v.waypoints]
         warm = {v: self.values[v] for v in g.variables if v in self.values}
         if trajs and any(v not in self.values for v in trajs):
@@ -312,6 +321,31 @@ class _Checker:
         if r.feasible:
             self.values.update(r.values)
         return r
+
+    def known_solution(self, g: Any) -> Any:
+        """A feasible verdict without an NLP: when the values of earlier feasible solves of this
+        plan's subgraphs cover every variable of g and satisfy all its factors and bounds
+        (evaluated independently with numpy), g is feasible (Definition 4.3) and those values
+        are a solution. Typical case: a time slice or component inside a feasible relaxation."""
+        from gnppdsl.nlp.evaluate import max_violation
+        from gnppdsl.nlp.feasibility import FeasibilityResult
+
+        if not self.values or any(v not in self.values for v in g.variables):
+            return None
+        values = {v: self.values[v] for v in g.variables}
+        t0 = time.perf_counter()
+        try:
+            worst, _ = max_violation(g.factor_instances, values, self.run.compiled.geometry)
+            worst = max(worst, bound_violation(g.variables, values))
+        except Exception:        # a primitive numpy cannot evaluate: solve instead
+            return None
+        finally:
+            self.run.stats.reuse_time += time.perf_counter() - t0
+        if not worst <= self.run.options.tolerance:
+            return None
+        self.run.stats.reused_solutions += 1
+        per = {r: 0.0 for r in g.factor_refs}
+        return FeasibilityResult(True, values, per, worst, 0.0, 0.0, 0, "earlier solutions satisfy it", 0)
 
     def __call__(self, g: Any) -> Any:
         run = self.run
@@ -545,12 +579,16 @@ class _Run:
                                            "plan", "", self.stats.plans, 0))
 
     def evaluate(self, graph: Any, use_db: bool) -> tuple:
-        """Algorithm 1 on one plan's graph-NLP, relaxations loose -> tight, the full graph last.
+        """Algorithm 1 on one plan's graph-NLP.
 
+        Order "full_first" (default, Fig. 3 step 3): solve the full graph-NLP first; only when it
+        is infeasible search for a conflict, relaxations loose -> tight. "relaxed_first": the
+        relaxations before the full graph, as Alg. 1 is written. Relaxation levels whose factor
+        set equals the previous level's or the full graph's are skipped (same verdict).
         Each relaxed graph G_r is first checked as a whole (one NLP; by Property 4.5 it is
         feasible iff all its components are), and only an infeasible G_r is searched component
         by component with the double binary search on time and the convergence heuristic
-        (`find_infeasible_subgraph`). Same verdicts as Alg. 1, fewer NLPs when G_r is feasible.
+        (`find_infeasible_subgraph`). Same verdicts as Alg. 1.
         Returns ("solution", values) | ("conflict", factors, relaxation) | ("inconsistent", why).
         """
         from gnppdsl.nlp.subgraph import find_infeasible_subgraph
@@ -559,8 +597,20 @@ class _Run:
         solver = self.new_solver()
         checker = _Checker(self, solver, graph, use_db=use_db)
         rules = [r for r in self.compiled.relaxations if r.dropped] if "r" in sw else []
-        for rule in [*rules, None]:
-            g_r = graph.apply_relaxation(rule.dropped, rule.name) if rule is not None else graph
+        levels: list = []
+        full_key = frozenset(graph.factor_refs)
+        seen: set = set()
+        for rule in rules:
+            g_r = graph.apply_relaxation(rule.dropped, rule.name)
+            key = frozenset(g_r.factor_refs)
+            if g_r.n_factors == 0 or key in seen or key == full_key:
+                continue
+            seen.add(key)
+            levels.append((rule, g_r))
+        levels.append((None, graph))
+        if self.options.order == "full_first" and len(levels) > 1:
+            levels.insert(0, (None, graph))
+        for index, (rule, g_r) in enumerate(levels):
             if g_r.n_factors == 0:
                 continue
             verdict = checker(g_r)
@@ -576,6 +626,8 @@ class _Run:
                 if use_db:                        # the solver disagrees with the database
                     return self.evaluate(graph, use_db=False)
                 return ("inconsistent", "the full graph-NLP failed after a feasible verdict")
+            if rule is None and index < len(levels) - 1:
+                continue                          # full graph infeasible: look for a conflict
             # Alg. 1 on the components of G_r; it returns the first infeasible one, so those
             # holding factors violated at G_r's convergence point are searched first.
             violated = set(verdict.violated(self.options.tolerance)) if hasattr(verdict, "violated") else set()

@@ -77,6 +77,8 @@ class Stats:
     conflicts: int = 0
     db_feasible_hits: int = 0
     db_infeasible_hits: int = 0
+    reused_solutions: int = 0         # subgraphs shown feasible by earlier solutions (no NLP)
+    reuse_time: float = 0.0           # seconds spent evaluating those
     N0: int | None = None             # length of the first logical plan
     N: int | None = None              # length of the returned solution
     max_violation: float | None = None   # independent re-check of every factor at the solution
