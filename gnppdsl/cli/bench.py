@@ -152,6 +152,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--seeds must be >= 1")
     if args.time_limit <= 0:
         raise UserError("--time-limit must be positive")
+    if args.csv and not Path(args.csv).resolve().parent.is_dir():
+        # say so before minutes of benchmarking, not after
+        raise UserError(f"--csv {args.csv}: directory {Path(args.csv).resolve().parent} does not exist")
     files = find_problems(args.paths)
     rows: list[dict] = []
     names: list[str] = []

@@ -369,6 +369,33 @@ class _Checker:
         return r
 
 
+def deadline_solver(base: type) -> type:
+    """A FeasibilitySolver subclass that stops between ipopt runs at the solve's deadline.
+
+    Why: ipopt's `max_wall_time` applies to one run and is fixed when an NLP is assembled,
+    while one feasibility solve may run ipopt several times (random restarts, the polish
+    re-solve). Checking the deadline before every run bounds the overshoot to one run started
+    before the deadline (whose own limit is the time that was left at assembly)."""
+    cached = _DEADLINE_SOLVERS.get(base)
+    if cached is not None:
+        return cached
+
+    class DeadlineSolver(base):      # type: ignore[misc, valid-type]
+        deadline: float = float("inf")
+
+        def _run(self, *args: Any, **kwargs: Any) -> Any:
+            if time.perf_counter() >= self.deadline:
+                raise _TimeUp()
+            return super()._run(*args, **kwargs)
+
+    DeadlineSolver.__name__ = DeadlineSolver.__qualname__ = f"Deadline{base.__name__}"
+    _DEADLINE_SOLVERS[base] = DeadlineSolver
+    return DeadlineSolver
+
+
+_DEADLINE_SOLVERS: dict[type, type] = {}
+
+
 class _Run:
     def __init__(self, compiled: Compiled, options: SolveOptions, progress: Progress | None):
         from gnppdsl.logic.planner import IncrementalPlanner
@@ -462,7 +489,8 @@ class _Run:
         kw = {} if self.options.restarts is None else {"restarts": self.options.restarts}
         opts = SolverOptions(tolerance=self.options.tolerance, max_iter=self.options.max_iter,
                              plugin=self.options.nlp, time_limit=max(0.05, self.remaining()), **kw)
-        solver = FeasibilitySolver(self.compiled.geometry, opts, compiler=self.compiler)
+        solver = deadline_solver(FeasibilitySolver)(self.compiled.geometry, opts, compiler=self.compiler)
+        solver.deadline = self.deadline
         self.solvers.append(solver)
         return solver
 
