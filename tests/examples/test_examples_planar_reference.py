@@ -26,6 +26,8 @@ def test_planar_expected_lengths(name):
     lg = Logic(p)
     n0 = lg.shortest_length()
     assert n0 == e["n0"], f"{name}: BFS gives N0 = {n0}, expected.yaml says {e['n0']}"
+    if e.get("reference") is False:
+        pytest.skip(f"{name}: N checked once offline (slow: many logical plans), see expected.yaml")
     hi = e["n"] if e["n"] is not None else p.max_horizon
     assert hi is not None, f"{name}: an unsolvable problem must set max_horizon"
     n, stats = shortest_feasible(p, n0, hi)
