@@ -274,10 +274,13 @@ class _Checker:
     - count NLPs, remember feasible values for warm starts, enforce the deadline.
     """
 
+    max_points = 3                       # infeasible convergence points kept for `known_solution`
+
     def __init__(self, run: "_Run", solver: Any, graph: Any, use_db: bool):
         self.run, self.solver, self.graph, self.use_db = run, solver, graph, use_db
         self.values: dict[VarInstance, np.ndarray] = {}
         self.results: dict[frozenset, Any] = {}
+        self.points: list[dict] = []      # convergence points of infeasible solves, newest first
 
     def solve(self, g: Any) -> Any:
         run = self.run
@@ -320,32 +323,74 @@ class _Checker:
         self.results[key] = r
         if r.feasible:
             self.values.update(r.values)
+        else:
+            # an infeasible graph's convergence point x* may still satisfy a relaxation or a
+            # subgraph of it (e.g. everything but the collision factors)
+            self.points = [r.values, *self.points][:self.max_points]
+            self.infer_components(g, r)
         return r
+
+    def infer_components(self, g: Any, r: Any) -> None:
+        """Verdicts on the components of an infeasible g without an NLP (Property 4.5).
+
+        Components share no variables, so the convergence point x* restricted to a component
+        whose factors (and bounds) all hold at x* is a solution of it: feasible. If exactly
+        one component is violated at x* and every other one is feasible that way, the
+        infeasibility of g lies in it: infeasible, with x* as its convergence point (what
+        Alg. 1 would solve it for next)."""
+        from gnppdsl.nlp.feasibility import FeasibilityResult
+
+        comps = g.connected_components()
+        if len(comps) < 2 or not r.values:
+            return
+        tol = self.run.options.tolerance
+        bad, good = [], 0
+        for c in comps:
+            per = {ref: r.violations.get(ref, np.inf) for ref in c.factor_refs}
+            vals = {v: r.values[v] for v in c.variables if v in r.values}
+            worst = max(per.values(), default=0.0)
+            if worst <= tol and len(vals) == len(c.variables) and bound_violation(c.variables, vals) <= tol:
+                good += 1
+                self.results.setdefault(c.signature(), FeasibilityResult(
+                    True, vals, per, worst, 0.0, 0.0, 0, f"holds at the convergence point of {g.name}", 0))
+                self.values.update(vals)
+            else:
+                bad.append((c, per, vals, worst))
+        if len(bad) == 1 and good == len(comps) - 1:
+            c, per, vals, worst = bad[0]
+            if c.signature() not in self.results:
+                self.results[c.signature()] = FeasibilityResult(
+                    False, vals, per, worst, r.slack, 0.0, 0, f"the only violated component of {g.name}", 0)
+                self.run.stats.inferred_verdicts += 1
 
     def known_solution(self, g: Any) -> Any:
         """A feasible verdict without an NLP: when the values of earlier feasible solves of this
-        plan's subgraphs cover every variable of g and satisfy all its factors and bounds
-        (evaluated independently with numpy), g is feasible (Definition 4.3) and those values
-        are a solution. Typical case: a time slice or component inside a feasible relaxation."""
+        plan's subgraphs, or the convergence point of an earlier infeasible solve, cover every
+        variable of g and satisfy all its factors and bounds (evaluated independently with
+        numpy), g is feasible (Definition 4.3) and those values are a solution. Typical cases:
+        a time slice inside a feasible relaxation; a relaxation without the factors violated
+        at the full graph's convergence point."""
         from gnppdsl.nlp.evaluate import max_violation
         from gnppdsl.nlp.feasibility import FeasibilityResult
 
-        if not self.values or any(v not in self.values for v in g.variables):
-            return None
-        values = {v: self.values[v] for v in g.variables}
-        t0 = time.perf_counter()
-        try:
-            worst, _ = max_violation(g.factor_instances, values, self.run.compiled.geometry)
-            worst = max(worst, bound_violation(g.variables, values))
-        except Exception:        # a primitive numpy cannot evaluate: solve instead
-            return None
-        finally:
-            self.run.stats.reuse_time += time.perf_counter() - t0
-        if not worst <= self.run.options.tolerance:
-            return None
-        self.run.stats.reused_solutions += 1
-        per = {r: 0.0 for r in g.factor_refs}
-        return FeasibilityResult(True, values, per, worst, 0.0, 0.0, 0, "earlier solutions satisfy it", 0)
+        for point in (self.values, *self.points):
+            if not point or any(v not in point for v in g.variables):
+                continue
+            values = {v: point[v] for v in g.variables}
+            t0 = time.perf_counter()
+            try:
+                worst, _ = max_violation(g.factor_instances, values, self.run.compiled.geometry)
+                worst = max(worst, bound_violation(g.variables, values))
+            except Exception:        # a primitive numpy cannot evaluate: solve instead
+                return None
+            finally:
+                self.run.stats.reuse_time += time.perf_counter() - t0
+            if not worst <= self.run.options.tolerance:
+                continue
+            self.run.stats.reused_solutions += 1
+            per = {r: 0.0 for r in g.factor_refs}
+            return FeasibilityResult(True, values, per, worst, 0.0, 0.0, 0, "earlier solutions satisfy it", 0)
+        return None
 
     def __call__(self, g: Any) -> Any:
         run = self.run
