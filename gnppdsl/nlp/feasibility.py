@@ -195,6 +195,8 @@ class _Assembled:
     lbg: np.ndarray
     ubg: np.ndarray
     monitor: _Monitor | None = None
+    row_factors: tuple = ()            # the FactorInstance of each factor_rows entry (kept alive:
+                                       # the cache key holds their ids)
 
 
 def _bounds(v: VarInstance, bound, default: float) -> np.ndarray:
@@ -253,10 +255,20 @@ class FeasibilitySolver:
 
     # -- assembly ---------------------------------------------------------------------------
     def assemble(self, graph: GraphNLP) -> _Assembled:
-        key = graph.signature()
+        # Key: the variables and the factor *instances* (by identity; the cached entry keeps
+        # them alive). Not FactorRefs: those are positions in one plan's factor list, so two
+        # plans' graphs could share refs for different factors. A hit from another graph gets
+        # its factor rows re-labelled with that graph's refs.
+        inst = list(graph.iter_factors())
+        key = (frozenset(graph.variables), frozenset(id(f) for _, f in inst))
         a = self._nlps.get(key)
         if a is not None:
             self._nlps.move_to_end(key)
+            ref_of = {id(f): r for r, f in inst}
+            if any(ref_of[id(f)] != r for (r, _, _), f in zip(a.factor_rows, a.row_factors)):
+                from dataclasses import replace as _replace
+                a = _replace(a, factor_rows=[(ref_of[id(f)], i0, i1) for (_, i0, i1), f
+                                             in zip(a.factor_rows, a.row_factors)])
             return a
         variables = graph.variables
         offsets, n = [], 0
@@ -351,8 +363,10 @@ class FeasibilitySolver:
         ubz = np.concatenate([ubx, np.full(ns, np.inf)])
         lbg = np.concatenate([np.full(ineq.size, -np.inf), np.zeros(eq.size), np.zeros(len(quats))])
         ubg = np.zeros(ineq.size + eq.size + len(quats))
+        fac = dict((r, f) for r, f in inst)
         a = _Assembled(solver, h_fun, variables, offsets, n, kinds_arr, factor_rows, params,
-                       ineq.size, eq.size, lbz, ubz, lbg, ubg, monitor)
+                       ineq.size, eq.size, lbz, ubz, lbg, ubg, monitor,
+                       tuple(fac[r] for r, _, _ in factor_rows))
         self._nlps[key] = a
         while len(self._nlps) > self.options.cache_size:
             self._nlps.popitem(last=False)
