@@ -292,6 +292,7 @@ class _Checker:
         known = self.known_solution(g)
         if known is not None:
             self.results[key] = known
+            self.values.update(known.values)      # a solution like any other: warm starts
             return known
         trajs = [v for v in g.variables if TRAJ in v.tags or v.waypoints]
         warm = {v: self.values[v] for v in g.variables if v in self.values}
