@@ -1,0 +1,97 @@
+"""End to end on the Lab (two Panda arms): `solve` finds a plan whose every keyframe and
+trajectory waypoint passes the independent pinocchio + coal verification; and the verification
+itself rejects corrupted solutions (so a pass means something)."""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve.verify_solution import verify_solution
+
+LAB = Path(__file__).resolve().parents[2] / "examples" / "lab"
+
+
+def _solve(name: str, time_limit: float):
+    c = load_and_compile(str(LAB / f"{name}.pntc"))
+    r = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, time_limit=time_limit))
+    return c, r
+
+
+@pytest.fixture(scope="module")
+def lab1():
+    return _solve("lab1", 120)
+
+
+def test_lab1_solved_and_verified(lab1):
+    c, r = lab1
+    assert r.status == "solved", r.message
+    assert r.plan[-1].startswith("stack(b2")
+    rep = verify_solution(c.geometry, r)
+    assert rep.ok, str(rep)
+    assert rep.keyframes == len(r.plan) + 1
+    assert rep.waypoints == 18 * len(r.plan)          # interior waypoints of every motion
+
+
+def _corrupt(r, fn):
+    bad = copy.deepcopy(r.steps)
+    fn(bad)
+    return type("R", (), {"steps": bad, "extras": r.extras})()
+
+
+def test_verification_rejects_a_block_inside_another(lab1):
+    c, r = lab1
+
+    def move(steps):
+        # b2 rests on b1 in the last state: sink it 3 cm into b1
+        steps[-1].values["pose(b2)"][2] -= 0.03
+    rep = verify_solution(c.geometry, _corrupt(r, move))
+    assert not rep.ok
+    assert any("collision" in f and "b2" in f for f in rep.failures)
+    assert any("does not rest on b1" in f for f in rep.failures)
+
+
+def test_verification_rejects_a_waypoint_beyond_joint_limits(lab1):
+    c, r = lab1
+    hi = c.geometry.robot("left_arm").upper
+
+    def push(steps):
+        steps[0].trajectories["path(left_arm)"][7][3] = float(hi[3]) + 0.2
+    rep = verify_solution(c.geometry, _corrupt(r, push))
+    assert any("waypoint 7: joint limit left_arm" in f for f in rep.failures), rep.failures
+
+
+def test_verification_rejects_a_lost_grasp(lab1):
+    c, r = lab1
+
+    def slip(steps):
+        # b2 is held at s1: shift its relative pose by 20 cm, out of the fingers
+        steps[1].values["pose(b2)"][0] += 0.2
+    rep = verify_solution(c.geometry, _corrupt(r, slip))
+    assert any("grasp of b2 by left_arm" in f for f in rep.failures), rep.failures
+
+
+def test_verification_rejects_a_trajectory_through_the_table(lab1):
+    c, r = lab1
+    q = np.asarray(r.steps[0].values["q(left_arm)"], float)
+
+    def dive(steps):
+        # shoulder pitched far forward: the hand goes through the table at an interior waypoint
+        bad = q.copy()
+        bad[1] = 1.7
+        bad[3] = -0.2
+        steps[0].trajectories["path(left_arm)"][10] = bad.tolist()
+    rep = verify_solution(c.geometry, _corrupt(r, dive))
+    assert any("waypoint 10: collision" in f for f in rep.failures), rep.failures
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["lab2", "lab3", "lab4", "lab5"])
+def test_lab_problem_solved_and_verified(name):
+    c, r = _solve(name, 600)
+    assert r.status == "solved", r.message
+    rep = verify_solution(c.geometry, r)
+    assert rep.ok, str(rep)
