@@ -168,3 +168,38 @@ def test_world_pose_expr_matches_the_solution():
     assert np.allclose(world("b1", 1)[:2], expected, atol=1e-9)
     with pytest.raises(IndexError):
         c.factory.world_pose_expr("b1", states, len(states))
+
+
+def _first_plan_graph(run):
+    res = run.planner.shortest_plan(time_limit=30)
+    assert res.found
+    return res.plan, run.build_graph(res.plan.states)
+
+
+@pytest.mark.parametrize("name", ["p5_handover", "p6_clutter"])
+def test_verdicts_without_nlps_are_right(name):
+    """Every verdict the checker derives without solving -- components of an infeasible graph
+    located at its convergence point, subgraphs satisfied by an earlier point -- is checked
+    here on its own: feasible ones by evaluating their values with numpy, infeasible ones by
+    solving them from many random starts."""
+    from gnppdsl.nlp.evaluate import max_violation
+    from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+
+    c = compiled(name)
+    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings, switches="trn"), None)
+    plan, graph = _first_plan_graph(run)
+    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    r = checker.solve(graph)
+    assert not r.feasible                     # the first plan of both problems fails
+    for rule in c.relaxations:
+        checker.solve(graph.apply_relaxation(rule.dropped, rule.name))
+    derived = [(sig, v) for sig, v in checker.results.items() if v.starts == 0]
+    assert derived, "no verdict was derived without an NLP"
+    strict = FeasibilitySolver(c.geometry, SolverOptions(restarts=6, noise=1.0))
+    for sig, verdict in derived:
+        sub = graph._derive(sig, "{check}")
+        if verdict.feasible:
+            worst, _ = max_violation(sub.factor_instances, verdict.values, c.geometry)
+            assert worst <= 1e-6 and loop.bound_violation(sub.variables, verdict.values) <= 1e-6
+        else:
+            assert not strict.solve(sub, seed=3).feasible, sub.describe()
