@@ -94,13 +94,16 @@ class _World:
 
 def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, link_margin: float = 0.01,
                     links: Iterable[str] = ("panda_link5", "panda_link6", "panda_hand"),
-                    tolerance: float = 1e-4, gripper_opening: float = 0.08,
+                    tolerance: float = 1e-4, rest_tolerance: float = 2e-3,
+                    gripper_opening: float = 0.08,
                     parent_var: str = "parent", pose_var: str = "pose", config_var: str = "q",
                     path_var: str = "path", self_collision: bool = True,
                     check_logic: bool = True) -> SolutionReport:
     """Verify a solved `Result` of a 3-D manipulation problem against its scene (`ctx`: a
     `GeometryContext`). `tolerance` absorbs the solver's constraint tolerance and the 1 mm
-    resting contact; see the module docstring for what is checked."""
+    resting contact; `rest_tolerance` the gap allowed under a resting object (the templates'
+    upright tolerance lets a 15 cm block tilt 0.8 deg: 1.1 mm at its lowest corner); see the
+    module docstring for what is checked."""
     rep = SolutionReport(ok=True)
     fail = rep.failures.append
     sc = ctx.scene
@@ -167,7 +170,7 @@ def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, link_margin
                     fail(f"{where}: grasp of {o} by {p}: {fail_grasp}")
             else:
                 chk = resting_on(ctx, o, _matrix_to_se3(To), p, _matrix_to_se3(w.matrix(p)),
-                                 tol=max(tolerance, 1e-3))
+                                 tol=rest_tolerance)
                 if not chk.ok:
                     fail(f"{where}: {o} does not rest on {p} (gap {chk.gap:+.4f}, centre over "
                          f"face {chk.inside}, distance {chk.distance:+.4f})")
