@@ -297,8 +297,9 @@ def resting_on(ctx_or_scene, obj: str, obj_value, support: str, support_value=No
                models=None) -> RestingCheck:
     """Does `obj` rest on `support`?
 
-    3-D: the object's lowest point is within `tol` of the support's highest point, its centre
-    projects inside the support's top face, and the two do not penetrate deeper than `tol`.
+    3-D, in the support's frame: the object's lowest point is within `tol` of the support's top,
+    its centre projects inside the support's top face, and the two do not penetrate deeper than
+    `tol`.
     Planar: the object's centre lies inside the support's footprint (a region on the table).
     """
     ctx = _as_ctx(ctx_or_scene, models)
@@ -313,11 +314,19 @@ def resting_on(ctx_or_scene, obj: str, obj_value, support: str, support_value=No
     if planar:
         inside = _in_polygon(To[:2, 3], _hull2(vs[:, :2]))
         return RestingCheck(inside, None, inside, d)
-    vo = world_vertices(bo, To)
-    top = vs[:, 2].max()
-    gap = float(vo[:, 2].min() - top)
-    top_face = vs[vs[:, 2] >= top - 1e-6][:, :2]
-    inside = _in_polygon(To[:2, 3], _hull2(top_face)) if len(top_face) >= 3 else False
+    # measured in the support's frame: a support that is itself slightly tilted (a block on a
+    # block) still has an exact top face there, and the gap is the object's lowest point above it
+    Ti = np.linalg.inv(Ts)
+    vs_l = vs @ Ti[:3, :3].T + Ti[:3, 3]
+    vo_l = world_vertices(bo, To) @ Ti[:3, :3].T + Ti[:3, 3]
+    if Ts[2, 2] < 0:                      # the support lies upside down: its local -z is up
+        vs_l[:, 2] *= -1
+        vo_l[:, 2] *= -1
+    top = vs_l[:, 2].max()
+    gap = float(vo_l[:, 2].min() - top)
+    top_face = vs_l[vs_l[:, 2] >= top - 1e-6][:, :2]
+    centre = Ti[:3, :3] @ To[:3, 3] + Ti[:3, 3]
+    inside = _in_polygon(centre[:2], _hull2(top_face)) if len(top_face) >= 3 else False
     ok = abs(gap) <= tol and inside and d >= -tol
     return RestingCheck(bool(ok), gap, bool(inside), d)
 

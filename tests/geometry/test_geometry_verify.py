@@ -116,3 +116,29 @@ def test_trajectory_check_finds_the_colliding_waypoint(ctx):
     assert colliding == [i for i, x in enumerate(xs) if abs(x - 0.5) < 0.05 - 1e-9]
     i, r = verify.first_violation(reps)
     assert i == colliding[0] and ("b1", "b2") == (r.collisions[0].a, r.collisions[0].b)
+
+
+def test_resting_on_a_tilted_support_is_measured_in_its_frame():
+    """A block stacked exactly on a slightly tilted block rests on it (the world-frame highest
+    vertex of the tilted support is not its top face); lifted 5 mm it does not."""
+    from gnppdsl.geometry.context import GeometryContext
+    from gnppdsl.geometry.verify import resting_on
+    from gnppdsl.ir.scene import load_scene_file as load_scene
+    from pathlib import Path
+    import numpy as _np
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "examples" / "lab" / "lab.yaml")
+    ctx = GeometryContext(scene)
+    a = 0.014                                       # 0.8 deg about x
+    q = [_np.sin(a / 2), 0.0, 0.0, _np.cos(a / 2)]
+    Ts = _np.eye(4)
+    Ts[:3, :3] = [[1, 0, 0], [0, _np.cos(a), -_np.sin(a)], [0, _np.sin(a), _np.cos(a)]]
+    Ts[:3, 3] = [0.0, 0.2, 0.645]
+    up = Ts[:3, :3] @ [0, 0, 0.09]                  # one block height along the support's z
+    support = [0.0, 0.2, 0.645, *q]
+    on_top = [*(Ts[:3, 3] + up), *q]
+    chk = resting_on(ctx, "b2", on_top, "b1", support)
+    assert chk.ok and abs(chk.gap) < 1e-9 and chk.inside
+    lifted = [*(Ts[:3, 3] + up + Ts[:3, :3] @ [0, 0, 0.005]), *q]
+    chk = resting_on(ctx, "b2", lifted, "b1", support)
+    assert not chk.ok and abs(chk.gap - 0.005) < 1e-9
