@@ -434,14 +434,7 @@ class FeasibilitySolver:
             sp = jf.sparsity_out(0)
             if sp.nnz() == 0:
                 continue
-            F = cb.function
-            slots = []
-            for j in range(F.n_in() - 1):
-                d = F.size1_in(j)
-                lo = sum(F.size1_in(i) for i in range(j))
-                idx = [stacked[t][lo + m] for t in range(k) for m in range(d)]
-                slots.append(ca.reshape(x[idx], d, k))
-            Pg = ca.reshape(P[p0:p0 + cb.n_params * k], cb.n_params, k) if cb.n_params else ca.MX(0, k)
+            slots, Pg = _mapped_inputs(x, P, cb, k, stacked, p0)
             fn = jf if k == 1 else jf.map(k, "serial")
             parts.append(fn(*slots, Pg).nz[:])
             rr, cc = sp.get_triplet()
@@ -497,14 +490,7 @@ class FeasibilitySolver:
             sp = hf.sparsity_out(0)
             if sp.nnz() == 0:
                 continue
-            F = cb.function
-            slots = []
-            for j in range(F.n_in() - 1):
-                d = F.size1_in(j)
-                lo = sum(F.size1_in(i) for i in range(j))
-                idx = [stacked[t][lo + m] for t in range(k) for m in range(d)]
-                slots.append(ca.reshape(x[idx], d, k))
-            Pg = ca.reshape(P[p0:p0 + cb.n_params * k], cb.n_params, k) if cb.n_params else ca.MX(0, k)
+            slots, Pg = _mapped_inputs(x, P, cb, k, stacked, p0)
             Lg = ca.reshape(lam_h[r0:r0 + cb.n_rows * k], cb.n_rows, k)
             fn = hf if k == 1 else hf.map(k, "serial")
             Hk = fn(*slots, Pg, Lg)
@@ -649,3 +635,18 @@ def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarr
     if solver is None:
         solver = FeasibilitySolver(geometry, SolverOptions(tolerance=tolerance, **options))
     return solver.solve(graph, warm_start=warm_start, seed=seed)
+
+
+def _mapped_inputs(x: ca.MX, P: ca.MX, cb, k: int, stacked, p0: int) -> tuple[list, ca.MX]:
+    """The inputs of one template's k instances for a mapped call: each variable slot as a
+    (dim x k) matrix gathered from x, and the parameters as (n_params x k). Shared by the
+    Jacobian and Hessian assembly so both read the instances in the same layout."""
+    F = cb.function
+    slots = []
+    for j in range(F.n_in() - 1):
+        d = F.size1_in(j)
+        lo = sum(F.size1_in(i) for i in range(j))
+        idx = [stacked[t][lo + m] for t in range(k) for m in range(d)]
+        slots.append(ca.reshape(x[idx], d, k))
+    Pg = ca.reshape(P[p0:p0 + cb.n_params * k], cb.n_params, k) if cb.n_params else ca.MX(0, k)
+    return slots, Pg
