@@ -25,21 +25,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Union
 
-
-@dataclass(frozen=True)
-class Span:
-    file: str
-    line: int
-    column: int
-    end_line: int | None = None
-    end_column: int | None = None
-
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.column}"
+from gnppdsl.lang.span import Span  # re-exported: IR nodes keep their source position
 
 
-def _span() -> Span | None:  # field default helper
-    return None
 
 
 @dataclass(frozen=True)

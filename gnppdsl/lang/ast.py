@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Union
 
-from gnppdsl.ir.expr import Span
+from gnppdsl.lang.span import Span
 
 _S = dict(default=None, compare=False, repr=False)
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Iterable
 
 from gnppdsl.errors import UserError
-from gnppdsl.ir.expr import Span
+from gnppdsl.lang.span import Span
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import re
 from functools import lru_cache
 from pathlib import Path
 
-from gnppdsl.ir.expr import Span
+from gnppdsl.lang.span import Span
 from gnppdsl.lang import ast
 from gnppdsl.lang.diagnostics import Reporter
 
@@ -596,9 +596,9 @@ def _grammar_signature() -> str:
     h.update((grammar_dir() / "pntc.lark").read_bytes())
     h.update(Path(__file__).read_bytes())
     h.update(Path(ast.__file__).read_bytes())
-    from gnppdsl.ir import expr
+    from gnppdsl.lang import span
 
-    h.update(Path(expr.__file__).read_bytes())          # Span lives there
+    h.update(Path(span.__file__).read_bytes())          # Span lives there
     return h.hexdigest()
 
 
