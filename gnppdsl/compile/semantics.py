@@ -1,8 +1,9 @@
 """SAS+ semantics on a `SASTask`: derived values, applicability, successor states, plans.
 
-Why here (and not only in `gnppdsl.logic`): the graph-NLP factory and `gnpp compile --emit
-factors --plan ...` must turn a plan into its sequence of full symbolic states, and the compile
-layer may not import the logic layer above it.
+Why here: the graph-NLP factory and `gnpp compile --emit factors --plan ...` must turn a plan into
+its sequence of full symbolic states, and the compile layer may not import the logic layer above
+it; the logic layer's validator (`gnppdsl.logic.validate`) builds on these same functions, which
+are written without clingo, so a bug in the ASP encoding still cannot hide itself.
 
 Semantics (Fast Downward's): derived variables are reset to their default 0 and recomputed
 layer by layer to a fixpoint; an operator applies if all its preconditions hold; every effect
@@ -18,7 +19,8 @@ from gnppdsl.errors import UserError
 
 State = tuple[int, ...]
 
-__all__ = ["derive", "initial_state", "applicable", "successor", "parse_plan", "plan_states"]
+__all__ = ["derive", "initial_state", "applicable", "fired_effects", "successor", "parse_plan",
+           "plan_states"]
 
 
 def derive(task: SASTask, state: Sequence[int]) -> State:
@@ -55,11 +57,25 @@ def applicable(op: Operator, state: Sequence[int]) -> bool:
     return all(state[v] == val for v, val in op.pre)
 
 
+def fired_effects(op: Operator, state: Sequence[int]) -> dict[int, int]:
+    """Assignments of the effects of `op` whose conditions hold in `state` (the old state).
+
+    Raises ValueError if two firing effects assign different values to one variable (undefined
+    in SAS+; can only arise from conditional effects)."""
+    out: dict[int, int] = {}
+    for e in op.effects:
+        if all(state[v] == x for v, x in e.conditions):
+            if out.get(e.var, e.value) != e.value:
+                raise ValueError(f"effects of {op.name} assign two values to variable {e.var}")
+            out[e.var] = e.value
+    return out
+
+
 def successor(task: SASTask, state: Sequence[int], op: Operator) -> State:
+    """s[a]: apply `op` (assumed applicable) and re-derive."""
     s = list(state)
-    for eff in op.effects:
-        if all(state[v] == val for v, val in eff.conditions):
-            s[eff.var] = eff.value
+    for v, x in fired_effects(op, state).items():
+        s[v] = x
     return derive(task, s)
 
 
@@ -114,5 +130,8 @@ def plan_states(task: SASTask, ops: Sequence[int]) -> list[State]:
             raise UserError(f"action {k + 1}, {op.name}, is not applicable in "
                             f"{task.state_str(states[-1])}: needs "
                             f"{', '.join(task.fact_str(f) for f in missing)}")
-        states.append(successor(task, states[-1], op))
+        try:
+            states.append(successor(task, states[-1], op))
+        except ValueError as err:
+            raise UserError(f"action {k + 1}, {op.name}: {err}") from None
     return states

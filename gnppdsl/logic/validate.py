@@ -2,8 +2,8 @@
 
 Why: every plan the ASP planner or Fast Downward returns is checked here against the plain
 SAS+ semantics, written without clingo, so that a bug in the encoding cannot hide itself.
-The functions are pure and small on purpose: `derive` evaluates axioms, `successor` applies one
-operator, `validate_plan` runs a whole plan, checks the goal and that no forbidden sequence of
+The SAS+ semantics (`derive`, `successor`, ...) are those of `gnppdsl.compile.semantics`;
+`validate_plan` runs a whole plan, checks the goal and that no forbidden sequence of
 partial states (a conflict, paper 000 Prop. 7.1) occurs at any offset.
 
 Semantics (as Fast Downward's search component):
@@ -18,60 +18,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
-from gnppdsl.compile.sas import Operator, PartialState, SASTask
+from gnppdsl.compile.sas import PartialState, SASTask
 
-State = tuple[int, ...]
+# The SAS+ semantics live in the compile layer (below this one); re-exported for callers here.
+from gnppdsl.compile.semantics import (
+    State, applicable, derive, fired_effects, initial_state, successor,
+)
 
-
-def derive(task: SASTask, state: Sequence[int]) -> State:
-    """Return `state` with all derived variables re-evaluated from its state variables."""
-    values = list(state)
-    derived = [i for i, v in enumerate(task.variables) if v.is_derived]
-    for i in derived:
-        values[i] = 0
-    layers: dict[int, list] = {}
-    for ax in task.axioms:
-        layers.setdefault(task.variables[ax.var].axiom_layer, []).append(ax)
-    for layer in sorted(layers):
-        rules = layers[layer]
-        changed = True
-        while changed:
-            changed = False
-            for ax in rules:
-                if values[ax.var] != ax.value and all(values[v] == x for v, x in ax.conditions):
-                    values[ax.var] = ax.value
-                    changed = True
-    return tuple(values)
-
-
-def initial_state(task: SASTask) -> State:
-    return derive(task, task.initial)
-
-
-def applicable(op: Operator, state: Sequence[int]) -> bool:
-    return all(state[v] == x for v, x in op.pre)
-
-
-def fired_effects(op: Operator, state: Sequence[int]) -> dict[int, int]:
-    """Assignments of the effects of `op` whose conditions hold in `state`.
-
-    Raises ValueError if two firing effects clash on one variable.
-    """
-    out: dict[int, int] = {}
-    for e in op.effects:
-        if all(state[v] == x for v, x in e.conditions):
-            if out.get(e.var, e.value) != e.value:
-                raise ValueError(f"effects of {op.name} assign two values to variable {e.var}")
-            out[e.var] = e.value
-    return out
-
-
-def successor(task: SASTask, state: Sequence[int], op: Operator) -> State:
-    """s[a]: apply `op` (assumed applicable) and re-derive."""
-    values = list(state)
-    for v, x in fired_effects(op, state).items():
-        values[v] = x
-    return derive(task, values)
+__all__ = ["State", "derive", "initial_state", "applicable", "fired_effects", "successor",
+           "plan_cost", "find_sequence", "ValidationResult", "validate_plan"]
 
 
 def plan_cost(task: SASTask, ops: Sequence[int]) -> int:
