@@ -44,6 +44,15 @@ _KNOWN = {
 _BIG = 1e10   # pinocchio marks "no limit" with +-DBL_MAX
 
 
+
+# pinocchio joint short names (`JointModelRX` -> "RX", ...) mapped to our joint kinds: aligned
+# joints name their axis by the last letter, unaligned ones carry the axis in the model.
+_UNIT_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+_ALIGNED_JOINTS = {"R": "revolute", "RUB": "revolute_unbounded", "P": "prismatic"}
+_UNALIGNED_JOINTS = {"RevoluteUnaligned": "revolute", "RevoluteUnboundedUnaligned": "revolute_unbounded",
+                     "PrismaticUnaligned": "prismatic"}
+
+
 def robot_data_share() -> str:
     """`<site-packages>/cmeel.prefix/share`, where example-robot-data installs its files."""
     candidates = []
@@ -245,23 +254,10 @@ def _coords_of(model) -> tuple[list[JointCoord], int, np.ndarray, np.ndarray]:
         short = jm.shortname().replace("JointModel", "")
         name = model.names[jid]
         axis = None
-        if short in ("RX", "RY", "RZ"):
-            kind, nc = "revolute", 1
-            axis = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}[short]
-        elif short == "RevoluteUnaligned":
-            kind, nc = "revolute", 1
-            axis = tuple(float(a) for a in jm.extract().axis)
-        elif short in ("RUBX", "RUBY", "RUBZ"):
-            kind, nc = "revolute_unbounded", 1
-            axis = {"RUBX": (1.0, 0.0, 0.0), "RUBY": (0.0, 1.0, 0.0), "RUBZ": (0.0, 0.0, 1.0)}[short]
-        elif short == "RevoluteUnboundedUnaligned":
-            kind, nc = "revolute_unbounded", 1
-            axis = tuple(float(a) for a in jm.extract().axis)
-        elif short in ("PX", "PY", "PZ"):
-            kind, nc = "prismatic", 1
-            axis = {"PX": (1.0, 0.0, 0.0), "PY": (0.0, 1.0, 0.0), "PZ": (0.0, 0.0, 1.0)}[short]
-        elif short == "PrismaticUnaligned":
-            kind, nc = "prismatic", 1
+        if short[:-1] in _ALIGNED_JOINTS and short[-1:] in _UNIT_AXES:
+            kind, nc, axis = _ALIGNED_JOINTS[short[:-1]], 1, _UNIT_AXES[short[-1]]
+        elif short in _UNALIGNED_JOINTS:
+            kind, nc = _UNALIGNED_JOINTS[short], 1
             axis = tuple(float(a) for a in jm.extract().axis)
         elif short == "Planar":
             kind, nc = "planar", 3
