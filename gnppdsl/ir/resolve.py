@@ -1325,16 +1325,25 @@ def _setting_value(res, s: ast.Setting, want: type):
     return v
 
 
+def _new_known_key(res, s, fields, seen, block: str) -> bool:
+    """A `key = value` of a settings block is usable: a known key, not set before in the block.
+    Reports the problem (with a did-you-mean hint) otherwise."""
+    k = s.key.value
+    if k not in fields:
+        res.err(s.key.span, f"unknown {block} setting '{k}'", "unknown-setting",
+                did_you_mean(k, fields) or "settings: " + ", ".join(fields))
+        return False
+    if k in seen:
+        res.err(s.key.span, f"'{k}' is set twice", "duplicate")
+        return False
+    return True
+
+
 def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverSettings:
     vals = {}
     for s in d.settings:
         k = s.key.value
-        if k not in M.SOLVER_FIELDS:
-            res.err(s.key.span, f"unknown solver setting '{k}'", "unknown-setting",
-                    did_you_mean(k, M.SOLVER_FIELDS) or "settings: " + ", ".join(M.SOLVER_FIELDS))
-            continue
-        if k in vals:
-            res.err(s.key.span, f"'{k}' is set twice", "duplicate")
+        if not _new_known_key(res, s, M.SOLVER_FIELDS, vals, "solver"):
             continue
         v = _setting_value(res, s, M.SOLVER_FIELDS[k])
         if v is None:
@@ -1388,12 +1397,7 @@ def settings_reachability(res, d: ast.ReachabilityDecl) -> M.Reachability | None
     kw: dict = {}
     for s in d.settings:
         k = s.key.value
-        if k not in M.REACHABILITY_FIELDS:
-            res.err(s.key.span, f"unknown reachability setting '{k}'", "unknown-setting",
-                    did_you_mean(k, M.REACHABILITY_FIELDS) or "settings: " + ", ".join(M.REACHABILITY_FIELDS))
-            continue
-        if k in kw:
-            res.err(s.key.span, f"'{k}' is set twice", "duplicate")
+        if not _new_known_key(res, s, M.REACHABILITY_FIELDS, kw, "reachability"):
             continue
         if k == "workspace":
             v = s.value
