@@ -143,17 +143,46 @@ def binary_search_time(graph: GraphNLP, is_feasible: Callable[[GraphNLP], bool]
 
 
 def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
-                          is_feasible: Callable[[GraphNLP], bool],
-                          tolerance: float = 1e-6) -> GraphNLP:
-    """Sec. VI-C: the subgraph M' spanned by the factors violated at the convergence point x*
-    of an infeasible `graph`; returned only if M' is itself infeasible, else `graph`."""
-    violated = result.violated(tolerance)
-    if not violated:
-        return graph
-    m = graph.subgraph(factors=violated, suffix="{n}")
-    if m.signature() == graph.signature():
-        return graph
-    return graph if is_feasible(m) else m
+                          check: Callable[[GraphNLP], "bool | FeasibilityResult"],
+                          tolerance: float = 1e-6, rounds: int = 3) -> GraphNLP:
+    """Sec. VI-C: shrink an infeasible `graph` around the factors violated at the convergence
+    point x* of its solve. Never returns a feasible graph (every candidate is checked).
+
+    Candidates, each kept only if `check` finds it infeasible:
+    - M'_v, the subgraph *induced* by the variables of the violated factors (every factor of
+      `graph` on those variables, Definition 4.2). Tried first because the violated factors
+      alone usually lack the constraints that pin their variables: the elastic optimum puts
+      the slack on one side of a contradiction, and that side alone is satisfiable.
+    - M', the violated factors alone (the paper's form), tried after M'_v when it is smaller
+      and has at least two factors. A single factor is not tried: alone, all its variables
+      are free, so it fails only if its template cannot hold for its constants, which the
+      time search already isolates (a one-factor time slice).
+    Repeated on the result (up to `rounds` times) while the check returns convergence points.
+    If M'_v is feasible, so is M' (a subgraph of a feasible graph, Property 4.4): stop.
+    """
+    cur, r = graph, result
+    for _ in range(rounds):
+        violated = r.violated(tolerance)
+        if not violated:
+            break
+        xs = {v for ref in violated for v in cur.graph.neighbors(ref)}
+        candidates = [cur.subgraph(variables=xs, suffix="{v}")]
+        if len(violated) > 1:
+            candidates.append(cur.subgraph(factors=violated, suffix="{n}"))
+        progressed = False
+        for m in candidates:
+            if m.n_factors == 0 or m.n_factors >= cur.n_factors or m.signature() == cur.signature():
+                continue
+            verdict = check(m)
+            if _ok(verdict):
+                break                      # a feasible candidate: its subgraphs are feasible too
+            cur, progressed = m, True
+            if not isinstance(verdict, FeasibilityResult):
+                return cur                 # no convergence point to go on from
+            r = verdict
+        if not progressed:
+            break
+    return cur
 
 
 def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] = (),
@@ -203,7 +232,7 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
                 if not isinstance(r, FeasibilityResult):
                     r = solver.solve(g_s, warm_start=warm)
                     stats.heuristic_solves += 1
-                g_s = convergence_heuristic(g_s, r, checker, tol)
+                g_s = convergence_heuristic(g_s, r, checker.result, tol)
             return SearchResult(g_s, rule.name, rng, stats=stats)
         if rule is FULL:
             for v in graph.variables:          # unconstrained vertices: any value in bounds

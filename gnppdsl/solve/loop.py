@@ -731,36 +731,8 @@ class _Run:
                     return ("solution", values)
                 checker.values.update(values)
                 continue
-            sub = found
-            if "n" in sw:
-                sub = self.shrink(sub, checker)
-            return ("conflict", tuple(sub.factor_instances), rule.name if rule is not None else "")
+            return ("conflict", tuple(found.factor_instances), rule.name if rule is not None else "")
         return ("solution", {})
-
-    def shrink(self, sub: Any, checker: "_Checker", rounds: int = 3) -> Any:
-        """Convergence heuristic, induced form (extends Sec. VI-C). When the factors violated
-        at the convergence point x* are feasible on their own (they lack the constraints that
-        pin their variables), try the subgraph *induced* by their variables instead: every
-        factor of `sub` on those variables (Definition 4.2). Kept only if it is infeasible;
-        repeated on the result. One NLP per round; never returns a feasible graph."""
-        tol = self.options.tolerance
-        for _ in range(rounds):
-            r = checker.results.get(sub.signature())
-            if r is None:
-                r = checker.solve(sub)
-            if r.feasible:
-                break
-            xs = {v for ref in r.violated(tol) for v in sub.graph.neighbors(ref)}
-            if not xs:
-                break
-            m = sub.subgraph(variables=xs, suffix="{v}")
-            if m.n_factors == 0 or m.n_factors >= sub.n_factors:
-                break
-            v = checker(m)
-            if (v.feasible if hasattr(v, "feasible") else bool(v)):
-                break
-            sub = m
-        return sub
 
     def oneway(self) -> Result:
         while True:

@@ -117,6 +117,34 @@ def test_convergence_heuristic_drops_unrelated_factors():
     assert whole.n_factors == g.n_factors and confirm_infeasible(whole)
 
 
+def test_convergence_heuristic_tries_the_induced_subgraph_first():
+    # b0 must satisfy x <= 0 and 2x >= 2: the elastic optimum (x* = 1) puts all the slack on
+    # `toy.left` alone, which is satisfiable by itself. The heuristic goes straight to the
+    # subgraph induced by b0 (both factors), infeasible, without solving the lone factor.
+    b0, b1, b2 = pose("b0", 0), pose("b1", 0), pose("b2", 0)
+    x = Index(Slot(0), Num(0))
+    from gnppdsl.ir.expr import Call
+    fs = [factor("toy.left", [b0], [Constraint(x, "<=", Num(0.0))], 0),
+          factor("toy.right", [b0], [Constraint(Call("mul", (Num(2.0), x)), ">=", Num(2.0))], 0),
+          no_overlap(b0, b1, 0.5, 0.5, 0), no_overlap(b1, b2, 0.5, 0.5, 0),
+          in_box(b1, 3.0, 0), in_box(b2, 3.0, 0)]
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    r = s.solve(g)
+    assert not r.feasible
+    assert [g.factor(f).template for f in r.violated(TOL)] == ["toy.left"]
+    checked = []
+
+    def check(h):
+        checked.append(templates(h))
+        return s.solve(h)
+
+    m = convergence_heuristic(g, r, check, TOL)
+    assert templates(m) == [("toy.left", 0), ("toy.right", 0)] and m.variables == [b0]
+    assert checked == [templates(m)]          # the lone violated factor is never solved
+    assert confirm_infeasible(m)
+
+
 def test_convergence_heuristic_keeps_graph_when_violated_part_is_feasible():
     # three discs in a tight box: at x* either only no_overlap or only in_box factors are
     # violated (the elastic optimum puts the slack on one kind), and each kind alone is
