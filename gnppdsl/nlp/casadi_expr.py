@@ -18,7 +18,7 @@ assembly (`gnppdsl.nlp.feasibility`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import casadi as ca
@@ -50,6 +50,13 @@ class _Param:
 
 
 @dataclass(frozen=True)
+class _Point:
+    """Placeholder for the k-th distinct waypoint a constraint reads (row-group keys only)."""
+
+    index: int
+
+
+@dataclass(frozen=True)
 class SlotSignature:
     dim: int
     waypoints: int
@@ -64,6 +71,31 @@ class SlotSignature:
 
 
 @dataclass(frozen=True)
+class GroupMember:
+    """Where one constraint of a row group sits in its body: its first row, the (slot,
+    waypoint) behind each `_Point` of the group key, the body slots it reads whole (in the
+    representative's slot order) and its first lifted parameter."""
+
+    row0: int
+    points: tuple[tuple[int, int], ...]
+    slots: tuple[int, ...]
+    p0: int
+
+
+@dataclass(frozen=True)
+class RowGroup:
+    """Constraints of one body that are identical up to the waypoints they read (and the
+    values of their lifted constants): e.g. the 18 copies of `sdist(..) with q = path[k]` of a
+    `forall k` template. `key` = (constraint with `_Point`s, renumbered slots and parameters,
+    point dims, whole-slot signatures, parameter count) defines one representative function
+    (points..., slots..., p) -> rows, differentiated once for all members."""
+
+    key: tuple
+    n_rows: int
+    members: tuple[GroupMember, ...]
+
+
+@dataclass(frozen=True)
 class CompiledBody:
     """One casadi Function for a body structure, with the kind of each output row."""
 
@@ -72,6 +104,7 @@ class CompiledBody:
     n_params: int
     symbolic: str                   # "SX" | "MX"
     primitives: frozenset[str] = frozenset()   # geometry primitives used (fk, sdist, sdist2)
+    groups: tuple[RowGroup, ...] = field(default=(), compare=False)   # see `row_groups`
 
     @property
     def n_rows(self) -> int:
@@ -127,6 +160,126 @@ def lift_constants(body: tuple[Constraint, ...]) -> tuple[tuple, list[float]]:
 
     key = tuple(walk(c) for c in body)
     return key, params
+
+
+def _params_in(e: Any, out: list[int]) -> None:
+    if isinstance(e, _Param):
+        out.append(e.index)
+    elif isinstance(e, Vec):
+        for x in e.items:
+            _params_in(x, out)
+    elif isinstance(e, Call):
+        for x in e.args:
+            _params_in(x, out)
+    elif isinstance(e, Index):
+        _params_in(e.base, out)
+    elif isinstance(e, Constraint):
+        _params_in(e.lhs, out)
+        _params_in(e.rhs, out)
+
+
+def abstract_constraint(c: Constraint, sigs: tuple[SlotSignature, ...]
+                        ) -> tuple[tuple, tuple[tuple[int, int], ...], tuple[int, ...], int]:
+    """(group key, points, whole slots, first parameter) of one lifted constraint.
+
+    Every waypoint read of a trajectory slot (`waypoint(x, k)`, `x[k]`) becomes `_Point(m)`,
+    m numbering the distinct (slot, waypoint) pairs in order of appearance; other slot uses
+    become `Slot(m)` renumbered in order of appearance; parameters are renumbered from 0 (a
+    constraint's lifted constants are contiguous: `lift_constants` numbers them in body order).
+    Two constraints with equal keys compute the same function of their points, slots and
+    parameters, so their derivatives are one function evaluated at different arguments."""
+    pidx: list[int] = []
+    _params_in(c, pidx)
+    p0 = min(pidx) if pidx else 0
+    if pidx and sorted(pidx) != list(range(p0, p0 + len(pidx))):
+        raise BodyError(f"internal: parameters of {c!r} are not contiguous", c)
+    points: dict[tuple[int, int], int] = {}
+    wholes: dict[int, int] = {}
+
+    def point(base: Any, k_expr: Any) -> Any:
+        if not isinstance(base, Slot) or not 0 <= base.index < len(sigs):
+            return None
+        sig = sigs[base.index]
+        if not sig.waypoints:
+            return None
+        k = static_int(k_expr)
+        if not -sig.waypoints <= k < sig.waypoints:
+            return None
+        return _Point(points.setdefault((base.index, k % sig.waypoints), len(points)))
+
+    def walk(e: Any) -> Any:
+        if isinstance(e, _Param):
+            return _Param(e.index - p0)
+        if isinstance(e, Slot):
+            return Slot(wholes.setdefault(e.index, len(wholes)))
+        if isinstance(e, Vec):
+            return Vec(tuple(walk(x) for x in e.items))
+        if isinstance(e, Call):
+            if e.fn == "waypoint" and len(e.args) == 2:
+                pt = point(e.args[0], e.args[1])
+                if pt is not None:
+                    return pt
+            st = _STATIC_ARGS.get(e.fn, ())
+            return Call(e.fn, tuple(a if i in st else walk(a) for i, a in enumerate(e.args)))
+        if isinstance(e, Index):
+            if e.stop is None:
+                pt = point(e.base, e.index)
+                if pt is not None:
+                    return pt
+            return Index(walk(e.base), e.index, e.stop)
+        if isinstance(e, Constraint):
+            return Constraint(walk(e.lhs), e.op, walk(e.rhs))
+        return e   # Obj, Str, Num
+
+    ac = walk(c)
+    pts = tuple(points)
+    whole = tuple(wholes)
+    key = (ac, tuple(sigs[j].point_dim for j, _ in pts), tuple(sigs[j] for j in whole), len(pidx))
+    return key, pts, whole, p0
+
+
+def row_groups(body: tuple, sigs: tuple[SlotSignature, ...], row_counts: list[int]
+               ) -> tuple[RowGroup, ...]:
+    """The constraints of a lifted body grouped by `abstract_constraint` key, in order of first
+    appearance; `row_counts[i]` is the number of rows of constraint i."""
+    groups: dict[tuple, list[GroupMember]] = {}
+    n_rows: dict[tuple, int] = {}
+    r0 = 0
+    for c, nr in zip(body, row_counts):
+        key, pts, whole, p0 = abstract_constraint(c, sigs)
+        groups.setdefault(key, []).append(GroupMember(r0, pts, whole, p0))
+        n_rows[key] = nr
+        r0 += nr
+    return tuple(RowGroup(k, n_rows[k], tuple(m)) for k, m in groups.items())
+
+
+def scatter_sum(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, values):
+    """The n_rows x n_cols matrix (SX or MX, as `values`) with values[i] added at
+    (rows[i], cols[i]) (repeated cells summed by one constant sparse product)."""
+    S = ca.MX if isinstance(values, ca.MX) else ca.SX
+    if rows.size == 0:
+        return S(n_rows, n_cols)
+    cell = cols.astype(np.int64) * n_rows + rows.astype(np.int64)     # column-major order
+    uniq, inv = np.unique(cell, return_inverse=True)
+    if uniq.size == cell.size:
+        order = np.argsort(cell, kind="stable")
+        vals = values[order.tolist()]
+    else:
+        A = ca.DM(ca.Sparsity.triplet(uniq.size, cell.size, inv.reshape(-1).tolist(),
+                                      list(range(cell.size))), 1.0)
+        vals = ca.mtimes(A, values)
+    sp = ca.Sparsity.triplet(n_rows, n_cols, (uniq % n_rows).tolist(), (uniq // n_rows).tolist())
+    return S(sp, vals)
+
+
+def _split(v, fn: ca.Function, n: int) -> list:
+    """The first n inputs of `fn` cut from one stacked column `v`."""
+    out, lo = [], 0
+    for i in range(n):
+        d = fn.size1_in(i)
+        out.append(v[lo:lo + d])
+        lo += d
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -246,12 +399,16 @@ _ARG_SIZES: dict[str, tuple[int | None, ...]] = {
 class _Builder:
     """Builds the casadi expression of one body from slot and parameter symbols."""
 
-    def __init__(self, slots: list, sigs: tuple[SlotSignature, ...], p, geometry: Geometry | None):
+    def __init__(self, slots: list, sigs: tuple[SlotSignature, ...], p, geometry: Geometry | None,
+                 points: list = ()):
         self.slots, self.sigs, self.p, self.geometry = slots, sigs, p, geometry
+        self.points = points            # symbols of `_Point` placeholders (group representatives)
 
     def expr(self, e: Any):
         if isinstance(e, _Param):
             return self.p[e.index]
+        if isinstance(e, _Point):
+            return self.points[e.index]
         if isinstance(e, Num):
             return ca.DM(float(e.value))
         if isinstance(e, Slot):
@@ -354,6 +511,22 @@ class _Builder:
         return prim(self.body(ba), xa, self.body(bb), xb)
 
 
+def _constraint_rows(builder: _Builder, c: Any):
+    """The rows h of one constraint (see the module docstring for the sign convention)."""
+    if not isinstance(c, Constraint) or c.op not in ("==", "<=", ">="):
+        raise BodyError(f"expected a constraint lhs op rhs, got {c!r}", c)
+    lhs, rhs = builder.expr(c.lhs), builder.expr(c.rhs)
+    nl, nr = lhs.numel(), rhs.numel()
+    if nl != nr and 1 not in (nl, nr):
+        raise BodyError(f"constraint sides have lengths {nl} and {nr}", c)
+    h = lhs - rhs if c.op != ">=" else rhs - lhs
+    return ca.vec(h)
+
+
+def _fname(name: str) -> str:
+    return "h_" + "".join(ch if ch.isalnum() else "_" for ch in name)
+
+
 def _uses(e: Any, names: set[str]) -> set[str]:
     found: set[str] = set()
 
@@ -377,6 +550,38 @@ def _uses(e: Any, names: set[str]) -> set[str]:
     return found
 
 
+def _has_repeats(cb: CompiledBody) -> bool:
+    """True when some row group has several members (derivatives are then assembled from one
+    representative per group); bodies without repeats are differentiated directly."""
+    return cb.symbolic == "SX" and any(len(g.members) > 1 for g in cb.groups)
+
+
+def _symbols(cb: CompiledBody) -> tuple[list, Any]:
+    F = cb.function
+    slots = [ca.SX.sym(f"x{j}", F.size1_in(j)) for j in range(F.n_in() - 1)]
+    return slots, ca.SX.sym("p", F.size1_in(F.n_in() - 1))
+
+
+def direct_jacobian(cb: CompiledBody) -> ca.Function:
+    """(x_0, ..., p) -> dh/dX by differentiating the whole body at once (reference for the
+    grouped assembly; used for bodies without repeated constraints)."""
+    F = cb.function
+    slots, p = _symbols(cb)
+    X = ca.vertcat(*slots)
+    return ca.Function(F.name() + "_jac", [*slots, p], [ca.jacobian(F(*slots, p), X)])
+
+
+def direct_hessian(cb: CompiledBody) -> ca.Function:
+    """(x_0, ..., p, lam) -> d^2 (lam . h) / dX^2 by differentiating the whole body at once."""
+    F = cb.function
+    slots, p = _symbols(cb)
+    lam = ca.SX.sym("lam", cb.n_rows)
+    X = ca.vertcat(*slots)
+    out = F(*slots, p)
+    H = ca.hessian(ca.dot(lam, out), X)[0] if cb.n_rows else ca.SX(X.numel(), X.numel())
+    return ca.Function(F.name() + "_hess", [*slots, p, lam], [H])
+
+
 class BodyCompiler:
     """Compiles factor bodies to casadi Functions, cached by (template, structure).
 
@@ -392,19 +597,16 @@ class BodyCompiler:
         self.compiled = 0           # number of distinct Functions built (for stats / tests)
         self._hessians: dict[int, tuple[CompiledBody, ca.Function]] = {}
         self._jacobians: dict[int, tuple[CompiledBody, ca.Function]] = {}
+        self._reps: dict[tuple, ca.Function | None] = {}   # row-group representative derivatives
 
     def jacobian(self, cb: CompiledBody) -> ca.Function:
         """(x_0, ..., x_{m-1}, p) -> dh/dX (X the stacked slots), an SX Function built once per
-        compiled body (see `hessian` for why the nlp layer assembles derivatives itself)."""
+        compiled body (see `hessian` for why the nlp layer assembles derivatives itself, and
+        `_grouped_derivative` for bodies with repeated per-waypoint constraints)."""
         hit = self._jacobians.get(id(cb))
         if hit is not None and hit[0] is cb:
             return hit[1]
-        F = cb.function
-        slots = [ca.SX.sym(f"x{j}", F.size1_in(j)) for j in range(F.n_in() - 1)]
-        p = ca.SX.sym("p", F.size1_in(F.n_in() - 1))
-        X = ca.vertcat(*slots)
-        J = ca.jacobian(F(*slots, p), X)
-        jf = ca.Function(F.name() + "_jac", [*slots, p], [J])
+        jf = self._grouped_derivative(cb, False) if _has_repeats(cb) else direct_jacobian(cb)
         self._jacobians[id(cb)] = (cb, jf)
         return jf
 
@@ -417,16 +619,103 @@ class BodyCompiler:
         hit = self._hessians.get(id(cb))
         if hit is not None and hit[0] is cb:
             return hit[1]
-        F = cb.function
-        slots = [ca.SX.sym(f"x{j}", F.size1_in(j)) for j in range(F.n_in() - 1)]
-        p = ca.SX.sym("p", F.size1_in(F.n_in() - 1))
-        lam = ca.SX.sym("lam", cb.n_rows)
-        X = ca.vertcat(*slots)
-        out = F(*slots, p)
-        H = ca.hessian(ca.dot(lam, out), X)[0] if cb.n_rows else ca.SX(X.numel(), X.numel())
-        hf = ca.Function(F.name() + "_hess", [*slots, p, lam], [H])
+        hf = self._grouped_derivative(cb, True) if _has_repeats(cb) else direct_hessian(cb)
         self._hessians[id(cb)] = (cb, hf)
         return hf
+
+    def _representative(self, group: RowGroup, hessian: bool) -> ca.Function | None:
+        """Jacobian (points..., slots..., p) -> dh/d[points, slots] or Hessian (..., lam) ->
+        d^2 (lam . h) of a row group's representative constraint; cached by group key, so equal
+        constraints of different bodies share it too. None when it has no input or no row."""
+        key = (group.key, hessian)
+        if key in self._reps:
+            return self._reps[key]
+        ac, pdims, wsigs, n_par = group.key
+        pts = [ca.SX.sym(f"w{m}", d) for m, d in enumerate(pdims)]
+        slots = [ca.SX.sym(f"x{m}", sg.dim) for m, sg in enumerate(wsigs)]
+        p = ca.SX.sym("p", n_par)
+        h = _constraint_rows(_Builder(slots, wsigs, p, self.geometry, pts), ac)
+        fn = None
+        if (pts or slots) and h.numel():
+            X = ca.vertcat(*pts, *slots)
+            if hessian:
+                lam = ca.SX.sym("lam", h.numel())
+                fn = ca.Function("rep_hess", [*pts, *slots, p, lam],
+                                 [ca.hessian(ca.dot(lam, h), X)[0]])
+            else:
+                fn = ca.Function("rep_jac", [*pts, *slots, p], [ca.jacobian(h, X)])
+        self._reps[key] = fn
+        return fn
+
+    def _grouped_derivative(self, cb: CompiledBody, hessian: bool, inline: bool = False
+                            ) -> ca.Function:
+        """The body's Jacobian or Hessian from its row groups: each group's representative is
+        differentiated once, then evaluated at every member's points, slots, parameters (and
+        multipliers), and the results are scattered into place and summed. Same function and
+        sparsity as differentiating the whole body (`direct_jacobian`, `direct_hessian`).
+
+        Why an MX Function with one mapped call per group (default) rather than inlined SX
+        calls (`inline=True`): one Panda waypoint's sdist Hessian is ~40k SX instructions, so
+        inlining 108 of them (lab paths_apart) builds a 3.5M-instruction graph (2.7 s, about
+        as slow as differentiating the whole body); the mapped call builds in milliseconds
+        and evaluates the same SX code. Measured numbers: tests/nlp/test_nlp_buildcost*.py."""
+        F = cb.function
+        m = F.n_in() - 1
+        sizes = [F.size1_in(j) for j in range(m)]
+        offs = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        n_x = int(offs[-1])
+        S = ca.SX if inline else ca.MX
+        slots = [S.sym(f"x{j}", sizes[j]) for j in range(m)]
+        p = S.sym("p", F.size1_in(m))
+        lam = S.sym("lam", cb.n_rows)
+        X = ca.vertcat(*slots) if slots else S(0, 1)
+        vals, rows, cols = [], [], []
+        for g in cb.groups:
+            fn = self._representative(g, hessian)
+            if fn is None:
+                continue
+            sp = fn.sparsity_out(0)
+            if sp.nnz() == 0:
+                continue
+            rr, cc = (np.asarray(t, dtype=np.int64) for t in sp.get_triplet())
+            pdims, n_par = g.key[1], g.key[3]
+            colmaps = []
+            for mem in g.members:
+                idx = [np.arange(offs[j] + k * d, offs[j] + (k + 1) * d)
+                       for (j, k), d in zip(mem.points, pdims)]
+                idx += [np.arange(offs[j], offs[j + 1]) for j in mem.slots]
+                colmaps.append(np.concatenate(idx))
+                rows.append(colmaps[-1][rr] if hessian else mem.row0 + rr)
+                cols.append(colmaps[-1][cc])
+            G = len(g.members)
+            if inline:
+                for mem, cm in zip(g.members, colmaps):
+                    args = _split(X[cm.tolist()], fn, len(mem.points) + len(mem.slots))
+                    args.append(p[mem.p0:mem.p0 + n_par])
+                    if hessian:
+                        args.append(lam[mem.row0:mem.row0 + g.n_rows])
+                    vals.append(ca.vec(fn(*args).nz[:]))
+                continue
+            cm = np.stack(colmaps, axis=1)                       # inputs x members
+            args, lo = [], 0
+            for i in range(len(g.members[0].points) + len(g.members[0].slots)):
+                d = fn.size1_in(i)
+                args.append(ca.reshape(X[cm[lo:lo + d].reshape(-1, order="F").tolist()], d, G))
+                lo += d
+            pi = np.array([np.arange(mem.p0, mem.p0 + n_par) for mem in g.members]).T
+            args.append(ca.reshape(p[pi.reshape(-1, order="F").tolist()], n_par, G)
+                        if n_par else S(0, G))
+            if hessian:
+                li = np.array([np.arange(mem.row0, mem.row0 + g.n_rows) for mem in g.members]).T
+                args.append(ca.reshape(lam[li.reshape(-1, order="F").tolist()], g.n_rows, G))
+            mapped = fn if G == 1 else fn.map(G, "serial")
+            vals.append(ca.vec(mapped(*args).nz[:]))
+        cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0, dtype=np.int64))
+        M = scatter_sum(n_x if hessian else cb.n_rows, n_x, cat(rows), cat(cols),
+                        ca.vertcat(*vals) if vals else S(0, 1))
+        if hessian:
+            return ca.Function(F.name() + "_hess", [*slots, p, lam], [M])
+        return ca.Function(F.name() + "_jac", [*slots, p], [M])
 
     def compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
         """(compiled body, parameter values) for one factor instance."""
@@ -463,17 +752,12 @@ class BodyCompiler:
         builder = _Builder(slots, sigs, p, self.geometry)
         rows, kinds = [], []
         for c in body:
-            if not isinstance(c, Constraint) or c.op not in ("==", "<=", ">="):
-                raise BodyError(f"expected a constraint lhs op rhs, got {c!r}", c)
-            lhs, rhs = builder.expr(c.lhs), builder.expr(c.rhs)
-            nl, nr = lhs.numel(), rhs.numel()
-            if nl != nr and 1 not in (nl, nr):
-                raise BodyError(f"constraint sides have lengths {nl} and {nr}", c)
-            h = lhs - rhs if c.op != ">=" else rhs - lhs
-            h = ca.vec(h)
+            h = _constraint_rows(builder, c)
             rows.append(h)
             kinds += ["eq" if c.op == "==" else "ineq"] * h.numel()
         out = ca.vertcat(*rows) if rows else S(0, 1)
-        fname = "h_" + "".join(ch if ch.isalnum() else "_" for ch in name)
+        fname = _fname(name)
         f = ca.Function(fname, [*slots, p], [out])
-        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims))
+        groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
+        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
+                            groups)
