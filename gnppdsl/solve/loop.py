@@ -67,6 +67,8 @@ class SolveOptions:
     restarts: int | None = None      # extra random starts after an infeasible verdict (None: nlp default)
     nlp: str = "ipopt"               # casadi plugin: ipopt | sqpmethod
     check_tolerance: float | None = None   # independent re-check threshold (default: tolerance)
+    screen_tolerance: float = 1e-4   # gnpp, full_first: skip a relaxation level whose factors all
+                                     # hold this well at the full graph's convergence point (0: off)
     order: str = "full_first"        # gnpp: "full_first" = solve the plan's graph-NLP, run Alg. 1
                                      # only when it is infeasible (Fig. 3, step 3); "relaxed_first"
                                      # = relaxations loose -> tight before the full graph
@@ -684,8 +686,12 @@ class _Run:
         levels.append((None, graph))
         if self.options.order == "full_first" and len(levels) > 1:
             levels.insert(0, (None, graph))
+        x_star: dict | None = None            # convergence point of the infeasible full graph
         for index, (rule, g_r) in enumerate(levels):
             if g_r.n_factors == 0:
+                continue
+            if rule is not None and x_star is not None and self.nearly_holds(g_r, x_star):
+                self.stats.screened_levels += 1
                 continue
             verdict = checker(g_r)
             feasible = verdict.feasible if hasattr(verdict, "feasible") else bool(verdict)
@@ -701,6 +707,7 @@ class _Run:
                     return self.evaluate(graph, use_db=False)
                 return ("inconsistent", "the full graph-NLP failed after a feasible verdict")
             if rule is None and index < len(levels) - 1:
+                x_star = getattr(verdict, "values", None) or None
                 continue                          # full graph infeasible: look for a conflict
             # Alg. 1 on the components of G_r; it returns the first infeasible one, so those
             # holding factors violated at G_r's convergence point are searched first.
@@ -733,6 +740,26 @@ class _Run:
                 continue
             return ("conflict", tuple(found.factor_instances), rule.name if rule is not None else "")
         return ("solution", {})
+
+    def nearly_holds(self, g_r: Any, x_star: dict) -> bool:
+        """Screening of a relaxation level by the full graph's convergence point x*: when every
+        factor and bound of G_r holds at x* within `screen_tolerance` (looser than the verdict
+        tolerance), G_r is taken as not the place of the conflict and its NLP is skipped. Why:
+        an infeasible solve stops early, leaving residuals of ~1e-5 on factors that are not part
+        of the contradiction; solving such a level only confirms it feasible. Sound either way:
+        a skipped level gives no conflict and no verdict, the conflict then comes from a tighter
+        level and is still confirmed by an NLP."""
+        from gnppdsl.nlp.evaluate import max_violation
+
+        tol = self.options.screen_tolerance
+        if tol <= 0 or any(v not in x_star for v in g_r.variables):
+            return False
+        values = {v: x_star[v] for v in g_r.variables}
+        try:
+            worst, _ = max_violation(g_r.factor_instances, values, self.compiled.geometry)
+        except Exception:          # a primitive numpy cannot evaluate: no screening
+            return False
+        return max(worst, bound_violation(g_r.variables, values)) <= tol
 
     def oneway(self) -> Result:
         while True:

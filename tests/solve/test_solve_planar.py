@@ -95,3 +95,22 @@ def test_gnpp_needs_fewer_nlps_than_oneway_when_branching_grows():
     assert 2 * runs["gnpp"].plans < runs["oneway"].plans
     assert runs["gnpp"].nlp_solves < runs["oneway"].nlp_solves
     assert runs["gnpp"].ipopt_runs < runs["oneway"].ipopt_runs
+
+
+def test_screened_relaxation_levels_keep_conflicts_real():
+    """t1_swap, seed 1: the full graph's convergence point leaves residuals of ~1e-5 on grasp
+    factors, so without screening the relaxations without collisions are solved only to be found
+    feasible. With screening (default) they are skipped: fewer NLPs, the same N, and every
+    conflict is still confirmed infeasible from many starts."""
+    c = compiled("t1_swap")
+    runs = {}
+    for screen in (0.0, 1e-4):
+        res = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, switches="trn", seed=1,
+                                                           time_limit=60, screen_tolerance=screen))
+        assert res.solved and res.stats.N == 6
+        check_solution(c, res)
+        for conflict in res.conflicts:
+            check_conflict_infeasible(c, conflict)
+        runs[screen] = res.stats
+    assert runs[0.0].screened_levels == 0 < runs[1e-4].screened_levels
+    assert runs[1e-4].nlp_solves < runs[0.0].nlp_solves
