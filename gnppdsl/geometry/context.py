@@ -124,6 +124,23 @@ class GeometryContext:
                                                    far_field=self.far_field)
         return self._callbacks[key]
 
+    def structure_key(self, name: str) -> tuple:
+        """What the symbolic geometry of a body or robot named `name` depends on, beyond its
+        pose: a robot's model (URDF/SRDF, locked joints, base joint; not its name, base pose or
+        home), an object's shape. Two names with equal keys give the same `fk`, `sdist` and
+        `sdist2` expressions for equal pose arguments, so the nlp layer compiles a body once for
+        e.g. all same-sized blocks, or both arms of the same model (the base pose is a lifted
+        parameter of `fk`). Unknown names key to themselves (structural, as before)."""
+        r = self.scene.robots.get(name)
+        if r is not None:
+            return ("robot", r.kind, r.model, r.urdf, r.srdf, tuple(r.package_dirs),
+                    tuple(sorted(r.locked.items())), r.attributes.get("base_joint"),
+                    repr(r.attributes.get("base_min")), repr(r.attributes.get("base_max")), r.shape)
+        o = self.scene.objects.get(name)
+        if o is not None:
+            return ("object", o.shape)
+        return ("name", name)
+
     # -- protocol: symbolic ---------------------------------------------------------------------
     def needs_mx(self, primitive: str) -> bool:
         """Nothing needs MX: casadi embeds the coal callback in SX graphs as a call node."""

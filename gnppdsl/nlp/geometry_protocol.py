@@ -15,6 +15,11 @@ body (e.g. a coal distance wrapped in a `casadi.Callback`, which only exists as 
 implementation whose primitive returns plain casadi expressions must accept both SX and MX.
 All vector arguments are casadi column vectors; results are column vectors (7x1 for `fk`, 1x1
 for distances).
+
+Optional: `structure_key(name) -> hashable`. Names with equal keys (e.g. blocks of one size,
+two arms of one model) must give identical symbolic `fk`/`sdist`/`sdist2` for equal arguments;
+the nlp layer then compiles one Function for bodies that differ only in such names. Without it,
+every object and robot name is structural.
 """
 from __future__ import annotations
 

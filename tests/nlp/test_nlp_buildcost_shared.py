@@ -1,0 +1,107 @@
+"""Fewer Functions to build: bodies that differ only in the names of same-shaped objects or
+same-model robots share one compiled Function (`GeometryContext.structure_key`), and a robot
+base pose repeated in a body is lifted once so equal `fk(...)` chains are built once. Every
+shared Function is checked against the independent numpy evaluator (pinocchio + coal) on each
+instance it serves."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gnppdsl.compile.factors import VarInstance
+from gnppdsl.geometry.context import GeometryContext
+from gnppdsl.ir.expr import Call, Constraint, Num, Obj, Slot, Str, Vec
+from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
+from gnppdsl.nlp.casadi_expr import BodyCompiler, lift_constants
+from gnppdsl.nlp.evaluate import constraint_rows
+
+from nlp_toys import C, factor
+
+BOX = SceneShape("box", (0.06, 0.15, 0.09))
+Q0 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.7071068, 0.7071068)
+
+
+@pytest.fixture(scope="module")
+def geo():
+    objs = {"b1": SceneObject("b1", BOX, (-0.2, 0.2, 0.645, 0, 0, 0, 1)),
+            "b2": SceneObject("b2", BOX, (0.3, 0.1, 0.645, 0, 0, 0, 1)),
+            "c": SceneObject("c", SceneShape("box", (0.1, 0.1, 0.1)), (0.0, 0.3, 0.65, 0, 0, 0, 1))}
+    robots = {"left": SceneRobot("left", "urdf", model="panda", base=(-0.4, -0.3, 0.6, *Q0[3:]),
+                                 ee="panda_hand_tcp", locked={"panda_finger_joint1": 0.04,
+                                                              "panda_finger_joint2": 0.04}),
+              "right": SceneRobot("right", "urdf", model="panda", base=(0.4, -0.3, 0.6, *Q0[3:]),
+                                  ee="panda_hand_tcp", locked={"panda_finger_joint1": 0.04,
+                                                               "panda_finger_joint2": 0.04}),
+              "open": SceneRobot("open", "urdf", model="panda", base=(0.0, -0.6, 0.6, *Q0[3:]),
+                                 ee="panda_hand_tcp", locked={"panda_finger_joint1": 0.01,
+                                                              "panda_finger_joint2": 0.01})}
+    return GeometryContext(Scene("s", 3, robots, objs))
+
+
+def test_structure_keys(geo):
+    assert geo.structure_key("b1") == geo.structure_key("b2") != geo.structure_key("c")
+    assert geo.structure_key("left") == geo.structure_key("right")
+    assert geo.structure_key("open") != geo.structure_key("left")     # other finger opening
+    assert geo.structure_key("nothing") != geo.structure_key("b1")
+
+
+def vec(xs):
+    return Vec(tuple(Num(float(x)) for x in xs))
+
+
+Q = lambda r: VarInstance("q", (r,), 0, "joints", 7)          # noqa: E731
+POSE = lambda o: VarInstance("pose", (o,), 0, "SE3", 7)       # noqa: E731
+
+
+def clear(geo, r, o, frames=("panda_link5", "panda_hand")):
+    """panda.clear_object-like body: links of arm r keep off object o (o's pose a variable)."""
+    base = vec(geo.scene.robots[r].base)
+    body = [Constraint(C("sdist", C("link", Obj(r), Str(f)), C("fk", Obj(r), Slot(0), Str(f), base),
+                         Obj(o), C("compose_se3", vec((0, 0, 0.575, 0, 0, 0, 1)), Slot(1))),
+                       ">=", Num(0.01)) for f in frames]
+    return factor("t.clear", [Q(r), POSE(o)], body, 0)
+
+
+def test_same_shapes_and_models_share_one_function_with_exact_values(geo):
+    comp = BodyCompiler(geo)
+    fs = [clear(geo, r, o) for r in ("left", "right") for o in ("b1", "b2")]
+    cbs = [comp.compile(f)[0] for f in fs]
+    assert all(cb is cbs[0] for cb in cbs) and comp.compiled == 1
+    other = comp.compile(clear(geo, "left", "c"))[0]
+    assert other is not cbs[0] and comp.compiled == 2
+    rng = np.random.default_rng(0)
+    for f in fs + [clear(geo, "left", "c")]:
+        cb, p = comp.compile(f)
+        for _ in range(3):
+            q = rng.uniform(-1.0, 1.0, 7)
+            pose = np.r_[rng.uniform(-0.3, 0.3, 3), 0, 0, 0, 1]
+            got = np.asarray(cb.function(q, pose, p)).ravel()
+            ref = [h for _, h in constraint_rows(f, {Q(f.bindings[0][1]): q,
+                                                     f.variables[1]: pose}, geo)]
+            assert np.allclose(got, ref, atol=1e-9), (f.label, got, ref)
+
+
+def test_repeated_robot_base_is_lifted_once_and_its_pattern_is_structural(geo):
+    f = clear(geo, "left", "b1", frames=("panda_link5", "panda_hand", "panda_link5"))
+    key, params = lift_constants(f.body)
+    fk_bases = [c.lhs.args[1].args[3] for c in key]
+    assert fk_bases[0] is fk_bases[1] is fk_bases[2]
+    # 7 (base) + per constraint: 7 (table pose) + 1 (margin)
+    assert len(params) == 7 + 3 * 8
+    comp = BodyCompiler(geo)
+    cb, p = comp.compile(f)
+    # a body whose two bases differ (same structure otherwise) must not reuse that Function
+    g = clear(geo, "left", "b1", frames=("panda_link5", "panda_hand", "panda_link5"))
+    body = list(g.body)
+    c2 = body[2]
+    moved = Call("fk", (*c2.lhs.args[1].args[:3], vec((-0.4, -0.3, 0.61, *Q0[3:]))))
+    body[2] = Constraint(Call("sdist", (c2.lhs.args[0], moved, *c2.lhs.args[2:])), c2.op, c2.rhs)
+    g2 = factor("t.clear", g.variables, body, 0)
+    cb2, p2 = comp.compile(g2)
+    assert cb2 is not cb and p2.size == p.size + 7
+    q, pose = np.full(7, 0.3), np.array([0.1, 0.2, 0.1, 0, 0, 0, 1])
+    for ff, c, pp in ((f, cb, p), (g2, cb2, p2)):
+        ref = [h for _, h in constraint_rows(ff, {Q("left"): q, POSE("b1"): pose}, geo)]
+        assert np.allclose(np.asarray(c.function(q, pose, pp)).ravel(), ref, atol=1e-9)
+    # the shared chain: one FK per (frame, joints) instead of one per constraint
+    assert cb.function.n_instructions() < cb2.function.n_instructions()
