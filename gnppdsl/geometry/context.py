@@ -19,6 +19,7 @@ import numpy as np
 from gnppdsl.errors import UserError
 from gnppdsl.geometry.distance import (ConvexBody, WitnessCallback, se2_to_matrix, se2_to_rp, signed_distance_expr,
                                        witness)
+from gnppdsl.geometry.features import N_OUT, model_expression
 from gnppdsl.geometry.kinematics import fk_function, fn_name, quat_to_rotation
 from gnppdsl.geometry.robots import RobotModel, load_robot, se3_to_matrix
 from gnppdsl.geometry.shapes import coal_shape
@@ -55,7 +56,7 @@ class GeometryContext:
                 self.models[name] = load_robot(spec)
         self._bodies: dict[tuple, ConvexBody] = {}
         self._callbacks: dict[tuple, WitnessCallback] = {}
-        self._sdist_fn: dict[tuple, ca.Function] = {}
+        self._sdist_fn: dict[tuple, Any] = {}     # per body pair: Function; ("parts", planar): (input, model)
 
     # -- robots -------------------------------------------------------------------------------
     def robot(self, name: str) -> RobotModel:
@@ -166,6 +167,36 @@ class GeometryContext:
             d = signed_distance_expr(cb, RA, pA, RB, pB)
             self._sdist_fn[key] = ca.Function(cb.name(), [xa, xb], [d], ["pose_a", "pose_b"], ["d"])
         return self._sdist_fn[key]
+
+    def sdist_parts(self, body_a: Any, body_b: Any, planar: bool = False
+                    ) -> tuple[ca.Function, ca.Function, ca.Function]:
+        """`sdist` (planar: `sdist2`) split at its stop gradient: (callback, input, model) with
+        callback(input(pose_a, pose_b)) -> o the local contact model (numbers, zero
+        derivative) and model(pose_a, pose_b, o) -> d, so that
+
+            sdist(a, pose_a, b, pose_b) == model(pose_a, pose_b, callback(input(pose_a, pose_b)))
+
+        with o held constant under differentiation. Why: differentiating through the callback
+        call node costs its dense zero Jacobian in every derivative graph; a caller that
+        differentiates `model` with o as a plain symbol and substitutes o afterwards gets the
+        same derivatives with Hessians about half the size. `input` and `model` do not depend
+        on the bodies (one cached pair per planar flag)."""
+        key = ("parts", planar)
+        if key not in self._sdist_fn:
+            n = 3 if planar else 7
+            xa, xb = ca.SX.sym("pa", n), ca.SX.sym("pb", n)
+            o = ca.SX.sym("o", N_OUT)
+            if planar:
+                (RA, pA), (RB, pB) = se2_to_rp(xa), se2_to_rp(xb)
+            else:
+                RA, pA, RB, pB = quat_to_rotation(xa[3:7]), xa[0:3], quat_to_rotation(xb[3:7]), xb[0:3]
+            x = ca.vertcat(ca.reshape(RA, 9, 1), pA, ca.reshape(RB, 9, 1), pB)
+            self._sdist_fn[key] = (
+                ca.Function("sdist_input" + ("2" if planar else ""), [xa, xb], [x]),
+                ca.Function("sdist_model" + ("2" if planar else ""), [xa, xb, o],
+                            [model_expression(o, RA, pA, RB, pB)]))
+        inp, model = self._sdist_fn[key]
+        return self._callback(body_a, body_b, planar), inp, model
 
     def sdist(self, body_a: Any, pose_a: Any, body_b: Any, pose_b: Any) -> Any:
         return self._sdist_function(body_a, body_b, False)(pose_a, pose_b)

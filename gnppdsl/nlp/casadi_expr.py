@@ -110,6 +110,10 @@ class CompiledBody:
     symbolic: str                   # "SX" | "MX"
     primitives: frozenset[str] = frozenset()   # geometry primitives used (fk, sdist, sdist2)
     groups: tuple[RowGroup, ...] = field(default=(), compare=False)   # see `row_groups`
+    # with stop-gradient symbols (see `_Builder.open_stops`): (x.., p, o) -> h with the callback
+    # outputs o as an input, and (x.., p) -> o; `function` is the first with o substituted
+    open_function: ca.Function | None = field(default=None, compare=False)
+    stops: ca.Function | None = field(default=None, compare=False)
 
     @property
     def n_rows(self) -> int:
@@ -418,10 +422,14 @@ class _Builder:
     """Builds the casadi expression of one body from slot and parameter symbols."""
 
     def __init__(self, slots: list, sigs: tuple[SlotSignature, ...], p, geometry: Geometry | None,
-                 points: list = ()):
+                 points: list = (), open_stops: bool = False):
         self.slots, self.sigs, self.p, self.geometry = slots, sigs, p, geometry
         self.points = points            # symbols of `_Point` placeholders (group representatives)
         self._fk: dict[Call, Any] = {}  # one kinematic chain per equal fk(...) node (see lift)
+        # open_stops (SX only, geometry with `sdist_parts`): each distance's stop-gradient
+        # callback output becomes a fresh symbol o_i, with its value expression in `stops`
+        self.open_stops = open_stops and hasattr(geometry, "sdist_parts")
+        self.stops: list[tuple[Any, Any]] = []     # (symbol o_i, callback(input) expression)
 
     def expr(self, e: Any):
         if isinstance(e, _Param):
@@ -531,6 +539,11 @@ class _Builder:
         xa, xb = self.expr(pa), self.expr(pb)
         _check_size(fn, xa, n, e)
         _check_size(fn, xb, n, e)
+        if self.open_stops:
+            cbf, inp, model = g.sdist_parts(self.body(ba), self.body(bb), fn == "sdist2")
+            o = ca.SX.sym(f"o{len(self.stops)}", cbf.size1_out(0))
+            self.stops.append((o, cbf(inp(xa, xb))))
+            return model(xa, xb, o)
         return prim(self.body(ba), xa, self.body(bb), xb)
 
 
@@ -609,13 +622,37 @@ def _symbols(cb: CompiledBody) -> tuple[list, Any]:
     return slots, ca.SX.sym("p", F.size1_in(F.n_in() - 1))
 
 
+def _open_rows(cb: CompiledBody, slots: list, p) -> tuple[Any, Any, Any]:
+    """(h, o, o's value) on SX symbols: with stop-gradient symbols, h is the open function of
+    a fresh o (differentiate with o held constant, then substitute o's value); else o is
+    empty."""
+    if cb.open_function is None:
+        return cb.function(*slots, p), ca.SX(0, 1), ca.SX(0, 1)
+    O = ca.SX.sym("o", cb.open_function.size1_in(len(slots) + 1))
+    return cb.open_function(*slots, p, O), O, cb.stops(*slots, p)
+
+
+def _closed(name: str, inputs: list, O, Ov, D) -> ca.Function:
+    """Function inputs -> D with the stop-gradient symbols O replaced by their values Ov (both
+    functions of `inputs`). Why an MX wrapper around two SX Functions instead of
+    `ca.substitute`: substituting into a Panda Hessian re-evaluates its whole SX graph (0.5 s of
+    lab1's assembly); the wrapper costs two call nodes."""
+    if O.numel() == 0:
+        return ca.Function(name, inputs, [D])
+    open_f = ca.Function(name + "_open", [*inputs, O], [D])
+    stop_f = ca.Function(name + "_stops", inputs, [Ov])
+    m = [ca.MX.sym(f"a{i}", x.sparsity()) for i, x in enumerate(inputs)]
+    return ca.Function(name, m, [open_f(*m, stop_f(*m))])
+
+
 def direct_jacobian(cb: CompiledBody) -> ca.Function:
     """(x_0, ..., p) -> dh/dX by differentiating the whole body at once (reference for the
     grouped assembly; used for bodies without repeated constraints)."""
     F = cb.function
     slots, p = _symbols(cb)
     X = ca.vertcat(*slots)
-    return ca.Function(F.name() + "_jac", [*slots, p], [ca.jacobian(F(*slots, p), X)])
+    out, O, Ov = _open_rows(cb, slots, p)
+    return _closed(F.name() + "_jac", [*slots, p], O, Ov, ca.jacobian(out, X))
 
 
 def direct_hessian(cb: CompiledBody) -> ca.Function:
@@ -624,9 +661,9 @@ def direct_hessian(cb: CompiledBody) -> ca.Function:
     slots, p = _symbols(cb)
     lam = ca.SX.sym("lam", cb.n_rows)
     X = ca.vertcat(*slots)
-    out = F(*slots, p)
+    out, O, Ov = _open_rows(cb, slots, p)
     H = ca.hessian(ca.dot(lam, out), X)[0] if cb.n_rows else ca.SX(X.numel(), X.numel())
-    return ca.Function(F.name() + "_hess", [*slots, p, lam], [H])
+    return _closed(F.name() + "_hess", [*slots, p, lam], O, Ov, H)
 
 
 class BodyCompiler:
@@ -682,16 +719,21 @@ class BodyCompiler:
         pts = [ca.SX.sym(f"w{m}", d) for m, d in enumerate(pdims)]
         slots = [ca.SX.sym(f"x{m}", sg.dim) for m, sg in enumerate(wsigs)]
         p = ca.SX.sym("p", n_par)
-        h = _constraint_rows(_Builder(slots, wsigs, p, self.geometry, pts), ac)
+        builder = _Builder(slots, wsigs, p, self.geometry, pts, open_stops=True)
+        h = _constraint_rows(builder, ac)
         fn = None
         if (pts or slots) and h.numel():
             X = ca.vertcat(*pts, *slots)
             if hessian:
                 lam = ca.SX.sym("lam", h.numel())
-                fn = ca.Function("rep_hess", [*pts, *slots, p, lam],
-                                 [ca.hessian(ca.dot(lam, h), X)[0]])
+                D = ca.hessian(ca.dot(lam, h), X)[0]
             else:
-                fn = ca.Function("rep_jac", [*pts, *slots, p], [ca.jacobian(h, X)])
+                D = ca.jacobian(h, X)
+            # derivatives with the stop-gradient symbols held constant, then their values
+            O, Ov = ((ca.vertcat(*t) for t in zip(*builder.stops)) if builder.stops
+                     else (ca.SX(0, 1), ca.SX(0, 1)))
+            ins = [*pts, *slots, p, lam] if hessian else [*pts, *slots, p]
+            fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D)
         self._reps[key] = fn
         return fn
 
@@ -806,7 +848,7 @@ class BodyCompiler:
         S = ca.MX if mx else ca.SX
         slots = [S.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
         p = S.sym("p", n_params)
-        builder = _Builder(slots, sigs, p, self.geometry)
+        builder = _Builder(slots, sigs, p, self.geometry, open_stops=not mx)
         rows, kinds = [], []
         for c in body:
             h = _constraint_rows(builder, c)
@@ -814,7 +856,13 @@ class BodyCompiler:
             kinds += ["eq" if c.op == "==" else "ineq"] * h.numel()
         out = ca.vertcat(*rows) if rows else S(0, 1)
         fname = _fname(name)
+        open_f = stops = None
+        if builder.stops:
+            O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
+            open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
+            stops = ca.Function(fname + "_stops", [*slots, p], [Ov])
+            out = ca.substitute(out, O, Ov)
         f = ca.Function(fname, [*slots, p], [out])
         groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
         return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
-                            groups)
+                            groups, open_f, stops)

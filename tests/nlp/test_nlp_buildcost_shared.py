@@ -105,3 +105,66 @@ def test_repeated_robot_base_is_lifted_once_and_its_pattern_is_structural(geo):
         assert np.allclose(np.asarray(c.function(q, pose, pp)).ravel(), ref, atol=1e-9)
     # the shared chain: one FK per (frame, joints) instead of one per constraint
     assert cb.function.n_instructions() < cb2.function.n_instructions()
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_stop_gradient_symbols_give_the_callback_derivatives(geo, seed):
+    """Derivatives built with the distance callbacks' outputs as held-constant symbols
+    (`GeometryContext.sdist_parts`) equal those of casadi differentiating the closed body
+    through the callback call nodes (zero derivatives), near and far from contact."""
+    import casadi as ca
+    from gnppdsl.nlp.casadi_expr import direct_hessian, direct_jacobian
+    comp = BodyCompiler(geo)
+    f = clear(geo, "left", "b1", frames=("panda_link5", "panda_link7", "panda_hand"))
+    cb, p = comp.compile(f)
+    assert cb.open_function is not None and cb.stops is not None
+    q, x = ca.SX.sym("q", 7), ca.SX.sym("x", 7)
+    lam = ca.SX.sym("lam", cb.n_rows)
+    X = ca.vertcat(q, x)
+    h = cb.function(q, x, p)
+    ref_j = ca.Function("rj", [q, x], [ca.jacobian(h, X)])
+    ref_h = ca.Function("rh", [q, x, lam], [ca.hessian(ca.dot(lam, h), X)[0]])
+    jf, hf = direct_jacobian(cb), direct_hessian(cb)
+    rng = np.random.default_rng(seed)
+    for _ in range(4):
+        qv = rng.uniform(-1.5, 1.5, 7)
+        hand = geo.fk_numeric("left", qv, "panda_hand", np.asarray(geo.scene.robots["left"].base))
+        xv = np.r_[hand[:3] + rng.normal(0, 0.05, 3) - [0, 0, 0.575], 0, 0, 0, 1]   # near the hand
+        lv = rng.normal(0, 1, cb.n_rows)
+        J0, J1 = np.asarray(ref_j(qv, xv).full()), np.asarray(jf(qv, xv, p).full())
+        H0, H1 = np.asarray(ref_h(qv, xv, lv).full()), np.asarray(hf(qv, xv, p, lv).full())
+        assert np.allclose(J0, J1, rtol=1e-10, atol=1e-10)
+        assert np.allclose(H0, H1, rtol=1e-9, atol=1e-9)
+        assert np.abs(H0).max() > 1e-3
+
+
+def test_grouped_waypoint_derivatives_with_stop_gradients(geo):
+    """A `forall k` Panda body over a trajectory: the grouped Jacobian/Hessian (one
+    representative, stop-gradient symbols) equal casadi's through the closed body."""
+    import casadi as ca
+    path = VarInstance("path", ("left",), 0, "joints", 5 * 7, waypoints=5)
+    base = vec(geo.scene.robots["left"].base)
+    body = [Constraint(C("sdist", C("link", Obj("left"), Str("panda_hand")),
+                         C("fk", Obj("left"), C("waypoint", Slot(0), Num(k)), Str("panda_hand"), base),
+                         Obj("b1"), C("compose_se3", vec((0, 0, 0.575, 0, 0, 0, 1)), Slot(1))),
+                       ">=", Num(0.01)) for k in range(1, 4)]
+    comp = BodyCompiler(geo)
+    cb, p = comp.compile(factor("t.path_clear", [path, POSE("b1")], body, 0))
+    assert [len(g.members) for g in cb.groups] == [3]
+    jf, hf = comp.jacobian(cb), comp.hessian(cb)
+    w, x = ca.SX.sym("w", 35), ca.SX.sym("x", 7)
+    lam = ca.SX.sym("lam", cb.n_rows)
+    X = ca.vertcat(w, x)
+    h = cb.function(w, x, p)
+    ref_j = ca.Function("rj", [w, x], [ca.jacobian(h, X)])
+    ref_h = ca.Function("rh", [w, x, lam], [ca.hessian(ca.dot(lam, h), X)[0]])
+    assert jf.sparsity_out(0) == ref_j.sparsity_out(0)
+    rng = np.random.default_rng(5)
+    wv = np.tile(rng.uniform(-1, 1, 7), 5) + rng.normal(0, 0.2, 35)
+    xv = np.array([-0.2, 0.2, 0.07, 0, 0, 0, 1])
+    lv = rng.normal(0, 1, cb.n_rows)
+    assert np.allclose(np.asarray(jf(wv, xv, p).full()), np.asarray(ref_j(wv, xv).full()),
+                       rtol=1e-10, atol=1e-10)
+    H0 = np.asarray(ref_h(wv, xv, lv).full())
+    assert np.allclose(np.asarray(hf(wv, xv, p, lv).full()), H0, rtol=1e-9, atol=1e-9)
+    assert np.abs(H0).max() > 1e-3
