@@ -102,10 +102,16 @@ def _planes(shape) -> _Planes | None:
         N0 = np.array(shape.normals())
         P = np.array(shape.points())
         O0 = (P @ N0.T).max(axis=0)          # convention-free offsets
+        # first face of each coplanar set (hull triangles): numpy against the kept ones (a
+        # Python any() over pairs took 0.5 s for the Panda links' hulls, once per process)
         keep: list[int] = []
+        Nk, Ok = np.empty_like(N0), np.empty_like(O0)
         for i in range(len(N0)):
-            if not any(np.dot(N0[i], N0[j]) > 1 - 1e-9 and abs(O0[i] - O0[j]) < 1e-9 for j in keep):
-                keep.append(i)
+            m = len(keep)
+            if m and np.any((Nk[:m] @ N0[i] > 1 - 1e-9) & (np.abs(O0[i] - Ok[:m]) < 1e-9)):
+                continue
+            Nk[m], Ok[m] = N0[i], O0[i]
+            keep.append(i)
         N, O = N0[keep], O0[keep]
     if N is not None:
         normals = [tuple(map(float, n)) for n in N]
