@@ -20,7 +20,7 @@ from gnppdsl.errors import UserError
 from gnppdsl.geometry.distance import (ConvexBody, WitnessCallback, se2_to_matrix, se2_to_rp, signed_distance_expr,
                                        witness)
 from gnppdsl.geometry.features import N_OUT, model_expression
-from gnppdsl.geometry.kinematics import fk_function, fn_name, quat_to_rotation
+from gnppdsl.geometry.kinematics import fk_function, fk_rp_function, fn_name, quat_to_rotation
 from gnppdsl.geometry.robots import RobotModel, load_robot, se3_to_matrix
 from gnppdsl.geometry.shapes import coal_shape
 from gnppdsl.ir.scene_model import Scene
@@ -170,33 +170,39 @@ class GeometryContext:
 
     def sdist_parts(self, body_a: Any, body_b: Any, planar: bool = False
                     ) -> tuple[ca.Function, ca.Function, ca.Function]:
-        """`sdist` (planar: `sdist2`) split at its stop gradient: (callback, input, model) with
-        callback(input(pose_a, pose_b)) -> o the local contact model (numbers, zero
-        derivative) and model(pose_a, pose_b, o) -> d, so that
+        """`sdist` (planar: `sdist2`) split at its stop gradient: (callback, to_rp, model) with
+        to_rp(pose) -> (R, p) the world rotation and position of a pose, callback(x) -> o the
+        local contact model (numbers, zero derivative) for x = [vec(RA), pA, vec(RB), pB]
+        (column-major), and model(RA, pA, RB, pB, o) -> d, so that
 
-            sdist(a, pose_a, b, pose_b) == model(pose_a, pose_b, callback(input(pose_a, pose_b)))
+            sdist(a, pose_a, b, pose_b) == model(RA, pA, RB, pB, callback(x))
 
         with o held constant under differentiation. Why: differentiating through the callback
         call node costs its dense zero Jacobian in every derivative graph; a caller that
         differentiates `model` with o as a plain symbol and substitutes o afterwards gets the
-        same derivatives with Hessians about half the size. `input` and `model` do not depend
-        on the bodies (one cached pair per planar flag)."""
+        same derivatives with Hessians about half the size. With (R, p) straight from `fk_rp`
+        a link's pose also skips the rotation -> quaternion -> rotation round trip (another
+        half). `to_rp` and `model` do not depend on the bodies (cached per planar flag)."""
         key = ("parts", planar)
         if key not in self._sdist_fn:
-            n = 3 if planar else 7
-            xa, xb = ca.SX.sym("pa", n), ca.SX.sym("pb", n)
-            o = ca.SX.sym("o", N_OUT)
-            if planar:
-                (RA, pA), (RB, pB) = se2_to_rp(xa), se2_to_rp(xb)
-            else:
-                RA, pA, RB, pB = quat_to_rotation(xa[3:7]), xa[0:3], quat_to_rotation(xb[3:7]), xb[0:3]
-            x = ca.vertcat(ca.reshape(RA, 9, 1), pA, ca.reshape(RB, 9, 1), pB)
+            v = ca.SX.sym("pose", 3 if planar else 7)
+            R, p = se2_to_rp(v) if planar else (quat_to_rotation(v[3:7]), v[0:3])
+            RA, RB = ca.SX.sym("RA", 3, 3), ca.SX.sym("RB", 3, 3)
+            pA, pB, o = ca.SX.sym("pA", 3), ca.SX.sym("pB", 3), ca.SX.sym("o", N_OUT)
+            sfx = "2" if planar else ""
             self._sdist_fn[key] = (
-                ca.Function("sdist_input" + ("2" if planar else ""), [xa, xb], [x]),
-                ca.Function("sdist_model" + ("2" if planar else ""), [xa, xb, o],
+                ca.Function("pose_rp" + sfx, [v], [R, p]),
+                ca.Function("sdist_model" + sfx, [RA, pA, RB, pB, o],
                             [model_expression(o, RA, pA, RB, pB)]))
-        inp, model = self._sdist_fn[key]
-        return self._callback(body_a, body_b, planar), inp, model
+        to_rp, model = self._sdist_fn[key]
+        return self._callback(body_a, body_b, planar), to_rp, model
+
+    def fk_rp(self, robot: str, q: Any, frame: str, base: Any) -> tuple[Any, Any]:
+        """`fk` as (R 3x3, p 3x1), without converting the rotation to a quaternion."""
+        r = self.robot(robot)
+        if q.shape[0] != r.nc:
+            raise UserError(f"fk({robot}): expected {r.nc} joint coordinates, got {q.shape[0]}")
+        return tuple(fk_rp_function(r, frame)(q, base))
 
     def sdist(self, body_a: Any, pose_a: Any, body_b: Any, pose_b: Any) -> Any:
         return self._sdist_function(body_a, body_b, False)(pose_a, pose_b)

@@ -426,6 +426,7 @@ class _Builder:
         self.slots, self.sigs, self.p, self.geometry = slots, sigs, p, geometry
         self.points = points            # symbols of `_Point` placeholders (group representatives)
         self._fk: dict[Call, Any] = {}  # one kinematic chain per equal fk(...) node (see lift)
+        self._fk_rp: dict[Call, Any] = {}   # the same as (R, p), for distances
         # open_stops (SX only, geometry with `sdist_parts`): each distance's stop-gradient
         # callback output becomes a fresh symbol o_i, with its value expression in `stops`
         self.open_stops = open_stops and hasattr(geometry, "sdist_parts")
@@ -536,15 +537,35 @@ class _Builder:
         ba, pa, bb, pb = e.args
         prim = g.sdist if fn == "sdist" else g.sdist2
         n = 7 if fn == "sdist" else 3
+        if self.open_stops:
+            cbf, to_rp, model = g.sdist_parts(self.body(ba), self.body(bb), fn == "sdist2")
+            (RA, pA), (RB, pB) = (self._rp(x, to_rp, n, e) for x in (pa, pb))
+            o = ca.SX.sym(f"o{len(self.stops)}", cbf.size1_out(0))
+            x = ca.vertcat(ca.reshape(RA, 9, 1), pA, ca.reshape(RB, 9, 1), pB)
+            self.stops.append((o, cbf(x)))
+            return model(RA, pA, RB, pB, o)
         xa, xb = self.expr(pa), self.expr(pb)
         _check_size(fn, xa, n, e)
         _check_size(fn, xb, n, e)
-        if self.open_stops:
-            cbf, inp, model = g.sdist_parts(self.body(ba), self.body(bb), fn == "sdist2")
-            o = ca.SX.sym(f"o{len(self.stops)}", cbf.size1_out(0))
-            self.stops.append((o, cbf(inp(xa, xb))))
-            return model(xa, xb, o)
         return prim(self.body(ba), xa, self.body(bb), xb)
+
+    def _rp(self, node: Any, to_rp: ca.Function, n: int, e: Call) -> tuple[Any, Any]:
+        """(R, p) of a distance's pose argument: straight from `fk_rp` for an `fk(...)` node
+        (one chain per equal node, no quaternion round trip), else `to_rp` of its value."""
+        if (n == 7 and isinstance(node, Call) and node.fn == "fk" and len(node.args) == 4
+                and hasattr(self.geometry, "fk_rp")):
+            hit = self._fk_rp.get(node)
+            if hit is None:
+                robot, q, frame, base = node.args
+                if not isinstance(robot, Obj) or not isinstance(frame, Str):
+                    raise BodyError("fk expects (robot object, joints, frame string, base pose)",
+                                    node)
+                hit = self._fk_rp[node] = self.geometry.fk_rp(robot.name, self.expr(q),
+                                                              frame.value, self.expr(base))
+            return hit
+        x = self.expr(node)
+        _check_size(e.fn, x, n, e)
+        return tuple(to_rp(x))
 
 
 def _constraint_rows(builder: _Builder, c: Any):

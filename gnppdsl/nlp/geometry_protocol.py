@@ -20,6 +20,11 @@ Optional: `structure_key(name) -> hashable`. Names with equal keys (e.g. blocks 
 two arms of one model) must give identical symbolic `fk`/`sdist`/`sdist2` for equal arguments;
 the nlp layer then compiles one Function for bodies that differ only in such names. Without it,
 every object and robot name is structural.
+
+Optional, for cheaper derivatives (SX bodies): `sdist_parts(body_a, body_b, planar) ->
+(callback, to_rp, model)` splits a distance at its stop gradient (see `GeometryContext`), and
+`fk_rp(robot, q, frame, base) -> (R, p)` gives a frame without the quaternion; the nlp layer
+then differentiates `model` with the callback's output held constant.
 """
 from __future__ import annotations
 
