@@ -29,9 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=3, help="runs per algorithm and problem (seeds 0..N-1)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="seconds per run")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
-    parser.add_argument("--order", choices=("full_first", "relaxed_first"), default=None,
+    parser.add_argument("--order", choices=("full_first", "relaxed_first", "staged"), default=None,
                         help="gnpp: solve the full graph-NLP first and search for a conflict only when it "
-                             "fails (full_first, default), or relaxations first (relaxed_first)")
+                             "fails (full_first, default), relaxations first (relaxed_first), or the small "
+                             "relaxations, then the full graph (staged)")
     parser.add_argument("--csv", default=None, metavar="FILE", help="write one row per run")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 

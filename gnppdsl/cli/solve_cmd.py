@@ -22,9 +22,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="subset of 'trng' for gnpp/rlgp: t = binary search on time, r = relaxations, "
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
-    parser.add_argument("--order", choices=("full_first", "relaxed_first"), default=None,
+    parser.add_argument("--order", choices=("full_first", "relaxed_first", "staged"), default=None,
                         help="gnpp/rlgp: solve the full graph-NLP first and search for a conflict only "
-                             "when it fails (full_first, default), or relaxations first (relaxed_first)")
+                             "when it fails (full_first, default), relaxations first (relaxed_first), or the "
+                             "small relaxations, then the full graph (staged)")
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
     parser.add_argument("--seed", type=int, default=None, help="random seed of the NLP starts")
     parser.add_argument("--db", default=None, metavar="PATH",
