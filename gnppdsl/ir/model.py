@@ -416,6 +416,7 @@ class Relaxation:
 
 SOLVER_ALGORITHMS = ("gnpp", "oneway", "rlgp")
 SOLVER_NLPS = ("ipopt", "sqpmethod")
+SOLVER_ORDERS = ("full_first", "relaxed_first", "staged")
 
 
 @dataclass(frozen=True)
@@ -433,6 +434,8 @@ class SolverSettings:
     max_horizon longest plan (number of actions) the logic planner tries
     max_iter    NLP iteration limit per solve
     database    path of the subgraph database (SQLite) or None for in-memory
+    order       gnpp: when the relaxations are solved relative to the full graph-NLP
+                ("full_first", "relaxed_first", "staged"; None: the solver's default)
     """
 
     algorithm: str = "gnpp"
@@ -445,6 +448,7 @@ class SolverSettings:
     max_horizon: int = 20
     max_iter: int = 1000
     database: str | None = None
+    order: str | None = None
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -454,6 +458,7 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
+    "order": str,
 }
 
 

@@ -1356,6 +1356,10 @@ def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverS
             res.err(s.value.span, f"unknown NLP solver '{v}'", "setting",
                     did_you_mean(v, M.SOLVER_NLPS) or "one of " + ", ".join(M.SOLVER_NLPS))
             continue
+        if k == "order" and v not in M.SOLVER_ORDERS:
+            res.err(s.value.span, f"unknown order '{v}'", "setting",
+                    did_you_mean(v, M.SOLVER_ORDERS) or "one of " + ", ".join(M.SOLVER_ORDERS))
+            continue
         if k == "switches" and (set(v) - set("trng") or len(set(v)) != len(v)):
             res.err(s.value.span, f"switches are letters among t, r, n, g (each once), got '{v}'", "setting")
             continue
