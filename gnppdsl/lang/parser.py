@@ -645,13 +645,25 @@ def parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
     """Parse one file's text; syntax errors go to `reporter` and the result is None."""
     reporter.sources.add(path, text)
     key = _cache_key(text, path)
-    cached = _cache_load(key)
-    if cached is not None:
-        return cached
-    result = _parse_text(text, path, reporter)
+    result = _cache_load(key)
+    if result is None:
+        result = _parse_text(text, path, reporter)
+        if result is not None:
+            _cache_store(key, result)
     if result is not None:
-        _cache_store(key, result)
+        _report_layout(result, text, reporter)
     return result
+
+
+def _report_layout(file_ast: ast.FileAst, text: str, reporter: Reporter) -> None:
+    """Layout warnings (`gnppdsl.lang.lint`), once per place even if a file is parsed again."""
+    from gnppdsl.lang.diagnostics import Diagnostic
+    from gnppdsl.lang.lint import layout_warnings
+
+    for span, message, hint in layout_warnings(file_ast, text):
+        d = Diagnostic(message, span, "layout", hint, severity="warning")
+        if d not in reporter.diagnostics:
+            reporter.diagnostics.append(d)
 
 
 def _parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
