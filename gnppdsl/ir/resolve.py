@@ -1212,7 +1212,7 @@ class RuleResolver:
             if uses_prime and not two_step:
                 self.err(c.span, f"template '{q}' relates steps i and i+1 (it uses '), but rule "
                          f"'{d.name.value}' matches a single state", "prime",
-                         "write the pattern as `p -> p'` (or `always`-style rules cannot use it)")
+                         "write the pattern as `p -> p'`, or `always -> always` for every transition")
                 continue
             calls.append(M.TemplateCall(q, call, tpl_tags | tags, c.span))
         if pre is None or post is None:

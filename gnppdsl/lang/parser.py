@@ -395,6 +395,10 @@ def _make_transformer(path: str):
         def pat_always(self, m, c):
             return ("always", (), (), sp(m))
 
+        def pat_always_transition(self, m, c):
+            # every transition i -> i+1: a transition rule with empty partial states
+            return ("transition", (), (), sp(m))
+
         def pat_initial(self, m, c):
             return ("initial", (), (), sp(m))
 
