@@ -20,7 +20,7 @@ from gnppdsl.errors import UserError
 from gnppdsl.geometry.distance import (ConvexBody, WitnessCallback, se2_to_matrix, se2_to_rp, signed_distance_expr,
                                        witness)
 from gnppdsl.geometry.features import N_OUT, model_expression
-from gnppdsl.geometry.kinematics import fk_function, fk_rp_function, fn_name, quat_to_rotation
+from gnppdsl.geometry.kinematics import FrameChain, fk_function, fk_rp_function, fn_name, quat_to_rotation
 from gnppdsl.geometry.robots import RobotModel, load_robot, se3_to_matrix
 from gnppdsl.geometry.shapes import coal_shape
 from gnppdsl.ir.scene_model import Scene
@@ -196,6 +196,14 @@ class GeometryContext:
                             [model_expression(o, RA, pA, RB, pB)]))
         to_rp, model = self._sdist_fn[key]
         return self._callback(body_a, body_b, planar), to_rp, model
+
+    def fk_chain(self, robot: str, q: Any, base: Any) -> FrameChain:
+        """`chain.frame(name) -> (R, p)`: `fk_rp` of several frames at one (q, base) with the
+        joint prefix shared (build-time helper; keep it only while building one expression)."""
+        r = self.robot(robot)
+        if q.shape[0] != r.nc:
+            raise UserError(f"fk({robot}): expected {r.nc} joint coordinates, got {q.shape[0]}")
+        return FrameChain(r, q, base)
 
     def fk_rp(self, robot: str, q: Any, frame: str, base: Any) -> tuple[Any, Any]:
         """`fk` as (R 3x3, p 3x1), without converting the rotation to a quaternion."""

@@ -163,6 +163,54 @@ def fk_rp(robot: RobotModel, c, frame: str, base=None):
     return _compose(M, _const(model.frames[fid].placement.homogeneous))
 
 
+class FrameChain:
+    """World poses (R, p) of several frames of one robot at one (joints, base), sharing the
+    joint prefix: every joint transform is composed once, however many frames hang below it
+    (the same operations, in the same order, as `fk_rp` for each frame). Why: a body that
+    keeps links 5, 6, 7 and the hand of an arm clear recomputed joints 1-5 four times, and
+    their second derivatives too. Lives as long as the caller's expression building."""
+
+    def __init__(self, robot: RobotModel, c, base):
+        self.robot, self.c = robot, c
+        M0 = _const(robot.base) if base is None else base if isinstance(base, tuple) \
+            else se3_vec_to_rp(base)
+        self._after = {0: M0}               # joint id -> pose after that joint (0: the base)
+        self._by_joint = {i + 1: jc for i, jc in enumerate(robot.coords)}
+
+    def _joint(self, jid: int):
+        M = self._after.get(jid)
+        if M is None:
+            jc = self._by_joint[jid]
+            R, p = self._joint(self.robot.model.parents[jid])
+            M = self._after[jid] = tuple(_joint_step(self.robot, jid)(R, p, self.c[jc.idx_c:jc.idx_c + jc.nc]))
+        return M
+
+    def frame(self, frame: str):
+        R, p = self._joint(self.robot.model.frames[self.robot.frame_id(frame)].parentJoint)
+        return tuple(_frame_step(self.robot, frame)(R, p))
+
+
+def _joint_step(robot: RobotModel, jid: int) -> ca.Function:
+    """Cached (R, p, joint coordinates) -> pose after joint `jid` (its placement, then its
+    motion): one call per joint keeps `FrameChain` cheap to build from Python."""
+    def build():
+        jc = {i + 1: j for i, j in enumerate(robot.coords)}[jid]
+        R, p, c = ca.SX.sym("R", 3, 3), ca.SX.sym("p", 3), ca.SX.sym("c", jc.nc)
+        M = _compose((R, p), _const(robot.model.jointPlacements[jid].homogeneous))
+        M = _compose(M, joint_motion(jc, c))
+        return ca.Function(fn_name("joint", robot.name, str(jid)), [R, p, c], list(M))
+    return _cached(robot, ("joint_step", jid), build)
+
+
+def _frame_step(robot: RobotModel, frame: str) -> ca.Function:
+    """Cached (R, p) of a frame's parent joint -> (R, p) of the frame."""
+    def build():
+        R, p = ca.SX.sym("R", 3, 3), ca.SX.sym("p", 3)
+        M = _compose((R, p), _const(robot.model.frames[robot.frame_id(frame)].placement.homogeneous))
+        return ca.Function(fn_name("frame", robot.name, frame), [R, p], list(M))
+    return _cached(robot, ("frame_step", frame), build)
+
+
 def fk_expression(robot: RobotModel, c, frame: str, base=None):
     """World SE3 7-vector [x, y, z, qx, qy, qz, qw] of `frame` as a casadi expression."""
     R, p = fk_rp(robot, c, frame, base)

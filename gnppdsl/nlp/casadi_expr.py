@@ -427,10 +427,39 @@ class _Builder:
         self.points = points            # symbols of `_Point` placeholders (group representatives)
         self._fk: dict[Call, Any] = {}  # one kinematic chain per equal fk(...) node (see lift)
         self._fk_rp: dict[Call, Any] = {}   # the same as (R, p), for distances
+        self._chains: dict[tuple, Any] = {}  # (robot, joints, base) -> geometry's FrameChain
+        self.shared_chains: set[tuple] = set()   # keys with several frames (`plan_chains`)
         # open_stops (SX only, geometry with `sdist_parts`): each distance's stop-gradient
         # callback output becomes a fresh symbol o_i, with its value expression in `stops`
         self.open_stops = open_stops and hasattr(geometry, "sdist_parts")
         self.stops: list[tuple[Any, Any]] = []     # (symbol o_i, callback(input) expression)
+
+    def plan_chains(self, constraints) -> None:
+        """Mark the (robot, joints, base) of `fk` nodes that appear with two or more frames in
+        `constraints`: their distances share one `FrameChain` (a lone frame is cheaper as
+        the geometry's cached single-frame Function)."""
+        if not hasattr(self.geometry, "fk_chain"):
+            return
+        frames: dict[tuple, set] = {}
+
+        def walk(x: Any) -> None:
+            if isinstance(x, Call):
+                if x.fn == "fk" and len(x.args) == 4:
+                    frames.setdefault((x.args[0], x.args[1], x.args[3]), set()).add(x.args[2])
+                for a in x.args:
+                    walk(a)
+            elif isinstance(x, Vec):
+                for a in x.items:
+                    walk(a)
+            elif isinstance(x, Index):
+                walk(x.base)
+            elif isinstance(x, Constraint):
+                walk(x.lhs)
+                walk(x.rhs)
+
+        for c in constraints:
+            walk(c)
+        self.shared_chains = {k for k, v in frames.items() if len(v) > 1}
 
     def expr(self, e: Any):
         if isinstance(e, _Param):
@@ -560,8 +589,16 @@ class _Builder:
                 if not isinstance(robot, Obj) or not isinstance(frame, Str):
                     raise BodyError("fk expects (robot object, joints, frame string, base pose)",
                                     node)
-                hit = self._fk_rp[node] = self.geometry.fk_rp(robot.name, self.expr(q),
-                                                              frame.value, self.expr(base))
+                if (robot, q, base) in self.shared_chains:   # frames of one arm share joints
+                    chain = self._chains.get((robot, q, base))
+                    if chain is None:
+                        chain = self._chains[(robot, q, base)] = self.geometry.fk_chain(
+                            robot.name, self.expr(q), self.expr(base))
+                    hit = chain.frame(frame.value)
+                else:
+                    hit = self.geometry.fk_rp(robot.name, self.expr(q), frame.value,
+                                              self.expr(base))
+                self._fk_rp[node] = hit
             return hit
         x = self.expr(node)
         _check_size(e.fn, x, n, e)
@@ -741,6 +778,7 @@ class BodyCompiler:
         slots = [ca.SX.sym(f"x{m}", sg.dim) for m, sg in enumerate(wsigs)]
         p = ca.SX.sym("p", n_par)
         builder = _Builder(slots, wsigs, p, self.geometry, pts, open_stops=True)
+        builder.plan_chains([ac])
         h = _constraint_rows(builder, ac)
         fn = None
         if (pts or slots) and h.numel():
@@ -870,6 +908,7 @@ class BodyCompiler:
         slots = [S.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
         p = S.sym("p", n_params)
         builder = _Builder(slots, sigs, p, self.geometry, open_stops=not mx)
+        builder.plan_chains(body)
         rows, kinds = [], []
         for c in body:
             h = _constraint_rows(builder, c)
