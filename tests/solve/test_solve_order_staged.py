@@ -86,3 +86,71 @@ def test_unknown_order_in_a_solver_block_is_a_located_error(tmp_path):
 def test_unknown_order_option_is_a_user_error():
     with pytest.raises(UserError, match="full_first, relaxed_first or staged"):
         SolveOptions(order="sideways").validated()
+
+
+# ---------------------------------------------------------------- motions between fixed keyframes
+def _toy():
+    from solve_toy import occupied_problem
+
+    return occupied_problem(waypoints=8)
+
+
+def _check_toy(compiled, res):
+    assert res.solved and res.stats.N == 4, res.message
+    check_solution(compiled, res)
+    for conflict in res.conflicts:
+        assert conflict.source == "nlp"
+        check_conflict_infeasible(compiled, conflict)
+
+
+@pytest.mark.parametrize("order", ["full_first", "staged"])
+def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, order):
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+
+    real_solve = FeasibilitySolver.solve
+    fixed_bounds = []
+
+    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0):
+        if "{motion" in g.name:
+            # every keyframe variable of a phase NLP is fixed by its bounds, the motion is free
+            keys = [v for v in g.variables if not v.waypoints]
+            assert keys and all(v.lower is not None and v.lower == v.upper for v in keys)
+            assert all(v.lower is None or v.lower != v.upper for v in g.variables if v.waypoints)
+            fixed_bounds.append(g.name)
+        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+
+    results = []
+    real = loop._Checker.motions_between_keyframes
+
+    def spy(self, g, trajs, warm):
+        r = real(self, g, trajs, warm)
+        results.append(r is not None)
+        return r
+
+    monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
+    monkeypatch.setattr(loop._Checker, "motions_between_keyframes", spy)
+    compiled = _toy()
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=6, order=order))
+    _check_toy(compiled, res)
+    assert fixed_bounds and results and results[-1]   # the solution came from the phases
+
+
+def test_a_failed_phase_falls_back_to_the_joint_solve_and_is_no_verdict(monkeypatch):
+    """Every phase NLP (keyframes fixed) is forced to fail: the loop solves all motions jointly
+    and finds the same answer, without a conflict from the failed phases."""
+    from gnppdsl.nlp.feasibility import FeasibilityResult, FeasibilitySolver
+
+    real = FeasibilitySolver.solve
+    forced = []
+
+    def flaky(self, g, warm_start=None, initial_guess=None, seed=0):
+        if "{motion" in g.name:
+            forced.append(g.name)
+            return FeasibilityResult(False, {}, {ref: 1.0 for ref in g.factor_refs}, 1.0, 1.0, 0.0, 0, "forced", 1)
+        return real(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+
+    monkeypatch.setattr(FeasibilitySolver, "solve", flaky)
+    compiled = _toy()
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=6, order="staged"))
+    assert forced
+    _check_toy(compiled, res)
