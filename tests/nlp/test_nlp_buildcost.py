@@ -167,3 +167,28 @@ def test_graph_nlp_derivatives_unchanged():
     assert j1.sparsity() == j2.sparsity() and h1.sparsity() == h2.sparsity()
     assert np.allclose(j1.full(), j2.full(), rtol=1e-12, atol=1e-12)
     assert np.allclose(h1.full(), h2.full(), rtol=1e-12, atol=1e-12)
+
+
+def test_blocks_of_one_waypoint_are_differentiated_together():
+    """Consecutive constraints reading the same waypoints (one `forall k` step) form one
+    block; grouped derivatives still equal the whole-body ones."""
+    a, b = Slot(0), Slot(1)
+    body = []
+    for k in range(1, WP - 1):
+        wa, wb = C("waypoint", a, Num(k)), C("waypoint", b, Num(k))
+        body += [Constraint(C("sdist", C("link", Obj("arm2"), Str("l1")), fk(wa, -0.4),
+                              C("link", Obj("arm2"), Str("l1")), fk(wb, 0.4)), ">=", Num(0.05)),
+                 Constraint(C("sqnorm", C("sub", wa, wb)), "<=", Num(4.0)),
+                 Constraint(C("sub", wa, wb), ">=", Vec((Num(-1.0), Num(-2.0))))]
+    comp = BodyCompiler(GEOM)
+    cb, params = comp.compile(factor("toy.block", [A, B], body, 0, ("traj",)))
+    assert [(len(g.members), g.n_rows) for g in cb.groups] == [(WP - 2, 4)]
+    assert [m.row0 for m in cb.groups[0].members] == [4 * i for i in range(WP - 2)]
+    rng = np.random.default_rng(7)
+    xs = [rng.normal(0.0, 0.7, 2 * WP) for _ in range(2)]
+    lam = rng.normal(0.0, 1.0, cb.n_rows)
+    for got, ref, extra in ((comp.jacobian(cb), direct_jacobian(cb), ()),
+                            (comp.hessian(cb), direct_hessian(cb), (lam,))):
+        assert got.sparsity_out(0) == ref.sparsity_out(0)
+        assert np.allclose(np.asarray(got(*xs, params, *extra).full()),
+                           np.asarray(ref(*xs, params, *extra).full()), rtol=1e-12, atol=1e-12)

@@ -144,13 +144,13 @@ def test_grouped_waypoint_derivatives_with_stop_gradients(geo):
     import casadi as ca
     path = VarInstance("path", ("left",), 0, "joints", 5 * 7, waypoints=5)
     base = vec(geo.scene.robots["left"].base)
-    body = [Constraint(C("sdist", C("link", Obj("left"), Str("panda_hand")),
-                         C("fk", Obj("left"), C("waypoint", Slot(0), Num(k)), Str("panda_hand"), base),
+    body = [Constraint(C("sdist", C("link", Obj("left"), Str(fr)),
+                         C("fk", Obj("left"), C("waypoint", Slot(0), Num(k)), Str(fr), base),
                          Obj("b1"), C("compose_se3", vec((0, 0, 0.575, 0, 0, 0, 1)), Slot(1))),
-                       ">=", Num(0.01)) for k in range(1, 4)]
+                       ">=", Num(0.01)) for k in range(1, 4) for fr in ("panda_hand", "panda_link5")]
     comp = BodyCompiler(geo)
     cb, p = comp.compile(factor("t.path_clear", [path, POSE("b1")], body, 0))
-    assert [len(g.members) for g in cb.groups] == [3]
+    assert [(len(g.members), g.n_rows) for g in cb.groups] == [(3, 2)]   # one block per k
     jf, hf = comp.jacobian(cb), comp.hessian(cb)
     w, x = ca.SX.sym("w", 35), ca.SX.sym("x", 7)
     lam = ca.SX.sym("lam", cb.n_rows)
