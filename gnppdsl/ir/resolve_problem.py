@@ -1,0 +1,214 @@
+"""A problem file -> `model.Problem`: objects, initial state (completed with defaults), goal,
+settings blocks and the scene (loaded, and checked against the objects with a geometric role).
+
+Separate because a problem is resolved against a finished `model.Domain`, not a domain being
+built: the logic resolver sees the domain through `_DomainView`.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from gnppdsl.ir import model as M
+from gnppdsl.ir.expr import Obj
+from gnppdsl.ir.resolve_logic import LogicResolver
+from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
+from gnppdsl.ir.workspace import Workspace
+from gnppdsl.lang import ast
+from gnppdsl.lang.diagnostics import Reporter, did_you_mean
+
+
+class ProblemResolver:
+    """Resolves one problem file against its resolved domain; `run()` returns the `model.Problem`."""
+
+    def __init__(self, ws: Workspace, f: ast.FileAst, dom: M.Domain) -> None:
+        self.ws = ws
+        self.f = f
+        self.dom = dom
+        self.r = ws.reporter
+        self.actions = dom.actions
+        self.continuous = dom.continuous
+        self.tags_seen = _domain_tags(dom)
+
+    def err(self, span, msg, kind="error", hint=None):
+        self.r.error(span, msg, kind, hint)
+
+    def run(self) -> M.Problem | None:
+        f, dom = self.f, self.dom
+        allowed = (ast.SceneRef, ast.ObjectsDecl, ast.InitDecl, ast.GoalDecl, ast.SolverDecl,
+                   ast.RelaxationsDecl, ast.ReachabilityDecl)
+        self.ws._reject(f, allowed, "a problem")
+        objects = dict(dom.constants)
+        for d in f.items:
+            if isinstance(d, ast.ObjectsDecl):
+                for g in d.groups:
+                    if g.type.value not in dom.types:
+                        self.err(g.type.span, f"unknown type '{g.type.value}'", "unknown-type",
+                                 did_you_mean(g.type.value, dom.types))
+                        continue
+                    for n in g.names:
+                        if n.value in objects:
+                            self.err(n.span, f"object '{n.value}' is declared twice"
+                                     + (" (it is a domain constant)" if n.value in dom.constants else ""),
+                                     "duplicate")
+                        elif n.value in M.BUILTIN_VALUES:
+                            self.err(n.span, f"'{n.value}' is a builtin value", "reserved")
+                        else:
+                            objects[n.value] = g.type.value
+        # a stand-in DomainResolver view for literal resolution
+        view = _DomainView(dom, self.r)
+        logic = LogicResolver(view, objects)
+        init: dict[tuple, M.Assign] = {}
+        init_span = None
+        for d in f.items:
+            if isinstance(d, ast.InitDecl):
+                init_span = init_span or d.span
+                for lit in d.lits:
+                    x = logic.literal(lit, {})
+                    if x is None:
+                        continue
+                    if not isinstance(x, M.StateLit) or x.negated:
+                        self.err(lit.span, "the initial state assigns state variables: `var(...) = value` "
+                                 "or a boolean `var(...)` / `not var(...)`", "init")
+                        continue
+                    key = (x.var, x.args)
+                    if key in init:
+                        self.err(lit.span, f"{_fact(x.var, x.args)} is assigned twice", "duplicate")
+                        continue
+                    init[key] = M.Assign(x.var, x.args, x.value, x.span)
+        goal = []
+        have_goal = False
+        for d in f.items:
+            if isinstance(d, ast.GoalDecl):
+                have_goal = True
+                for lit in d.lits:
+                    x = logic.literal(lit, {})
+                    if x is None:
+                        continue
+                    if isinstance(x, M.Compare) or (isinstance(x, M.StateLit) and x.negated):
+                        self.err(lit.span, "a goal is a partial state: `var(...) = value`, boolean "
+                                 "literals and derived predicates", "goal")
+                        continue
+                    goal.append(x)
+        if not have_goal:
+            self.err(f.header.span, "the problem has no goal", "goal", "add `goal { ... }`")
+        # complete the initial state: defaults, and everything else must be given
+        probe = M.Problem(f.header.name.value, f.path, dom, objects, (), ())
+        missing = []
+        full = []
+        for v in dom.state_vars.values():
+            for combo in probe.groundings(v.params):
+                args = tuple(Obj(o) for o in combo)
+                a = init.get((v.name, args))
+                if a is None:
+                    if v.is_bool:
+                        a = M.Assign(v.name, args, Obj(M.FALSE))
+                    elif v.allows_none:
+                        a = M.Assign(v.name, args, Obj(M.NONE))
+                    else:
+                        missing.append(_fact(v.name, args))
+                        continue
+                full.append(a)
+        if missing:
+            shown = ", ".join(missing[:5]) + (f" and {len(missing) - 5} more" if len(missing) > 5 else "")
+            self.err(init_span or f.header.span, f"the initial state gives no value to {shown}", "init",
+                     "state variables without `none` in their domain must be assigned")
+        settings = dom.settings
+        relax = dom.relaxations
+        reach = list(dom.reachability)
+        scene_path = None
+        scene = None
+        scene_ref_span = None
+        for d in f.items:
+            if isinstance(d, ast.SolverDecl):
+                settings = settings_solver(self, d, settings)
+            elif isinstance(d, ast.RelaxationsDecl):
+                relax = settings_relaxations(self, d)
+            elif isinstance(d, ast.ReachabilityDecl):
+                rb = settings_reachability(self, d)
+                if rb is not None:
+                    reach = [x for x in reach if x.name != rb.name] + [rb]
+            elif isinstance(d, ast.SceneRef):
+                if scene_path is not None:
+                    self.err(d.span, "the problem names a second scene", "duplicate")
+                    continue
+                scene_path = str((Path(f.path).parent / d.path))
+                scene_ref_span = d.span
+                from gnppdsl.ir.scene import OBJECT_KEYS, ROBOT_KEYS, load_scene_with_spans
+
+                scene, spans = load_scene_with_spans(scene_path, self.r, d.span)
+                declared = set(dom.scene_attrs)
+                for (entity, key), kspan in spans.items():
+                    if key in declared:
+                        continue
+                    known = sorted(declared | set(OBJECT_KEYS) | set(ROBOT_KEYS))
+                    hint = did_you_mean(key, known)
+                    if hint is not None:
+                        self.err(kspan, f"unknown key '{key}' in '{entity}'", "unknown-key", hint)
+        if scene is not None:
+            self.check_scene_objects(dom, objects, scene, scene_ref_span)
+            for rb in reach:
+                if rb.robot not in scene.robots:
+                    self.err(rb.span, f"reachability '{rb.name}': robot '{rb.robot}' is not in the scene",
+                             "unknown-name", did_you_mean(rb.robot, scene.robots))
+        return M.Problem(f.header.name.value, f.path, dom, objects, tuple(full), tuple(goal), settings,
+                         tuple(relax), tuple(reach), scene_path, scene, f.header.span)
+
+
+    def check_scene_objects(self, dom: M.Domain, objects: dict[str, str], scene, span) -> None:
+        """Objects with a geometric role must be in the scene: robots of `joints(r)` variables
+        among its robots, objects with a frame or a continuous variable among its entries."""
+        probe = M.Problem("", "", dom, objects, (), ())
+        robots: dict[str, str] = {}
+        placed: dict[str, str] = {}
+        for c in dom.continuous.values():
+            for combo in probe.groundings(c.params):
+                for p, o in zip(c.params, combo):
+                    if c.space.kind == "joints" and p.name == c.space.robot:
+                        robots.setdefault(o, f"joints of '{c.name}'")
+                    else:
+                        placed.setdefault(o, f"a continuous variable '{c.name}'")
+        for o, t in objects.items():
+            if dom.frame_of(t) is not None:
+                placed.setdefault(o, f"a frame (type '{dom.frame_of(t).param.type}')")
+        where = f"scene {Path(scene.path).name}"
+        for o, why in robots.items():
+            if o not in scene.robots:
+                self.err(span, f"object '{o}' needs a robot in {where} ({why})", "scene-missing",
+                         did_you_mean(o, scene.robots) or "add it under `robots:`")
+        for o, why in placed.items():
+            if o not in robots and scene.entity(o) is None:
+                self.err(span, f"object '{o}' has no entry in {where} (it has {why})", "scene-missing",
+                         did_you_mean(o, list(scene.objects) + list(scene.robots))
+                         or "add it under `objects:` (or `robots:`)")
+
+
+def _fact(var: str, args) -> str:
+    return f"{var}({', '.join(a.name for a in args)})" if args else var
+
+
+def _domain_tags(dom: M.Domain) -> set[str]:
+    tags: set[str] = set()
+    for c in dom.continuous.values():
+        tags |= c.tags
+    for t in dom.templates.values():
+        tags |= t.tags
+    for r in dom.rules:
+        tags |= r.tags
+    return tags
+
+
+class _DomainView:
+    """The part of DomainResolver that LogicResolver needs, over a finished Domain."""
+
+    def __init__(self, dom: M.Domain, reporter: Reporter) -> None:
+        self.dom = dom
+        self.r = reporter
+        self.state_vars = dom.state_vars
+        self.derived = dom.derived
+        self.constants = dom.constants
+
+    def err(self, span, msg, kind="error", hint=None):
+        self.r.error(span, msg, kind, hint)
+
+    def is_subtype(self, a: str, b: str) -> bool:
+        return self.dom.is_subtype(a, b)
