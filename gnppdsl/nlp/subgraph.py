@@ -54,6 +54,7 @@ class SearchStats:
     checks: int = 0                  # distinct subgraphs checked (memo hits excluded)
     solves: int = 0                  # checks answered by the NLP solver (FeasibilityResult)
     heuristic_solves: int = 0        # extra solves to get a convergence point
+    rechecks_feasible: int = 0       # components found feasible by `recheck` after failing
     log: list[tuple[str, int, bool]] = field(default_factory=list)   # (graph, |H|, feasible)
 
 
@@ -185,13 +186,33 @@ def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
     return cur
 
 
+def _whole_range_failed(comp: GraphNLP, rng: tuple[int, int] | None, checker: "_Checker") -> bool:
+    """The time search kept the whole range of a multi-step component: its strict slices
+    G[lo..hi-1] and G[lo+1..hi] were checked (memo) and are feasible."""
+    if rng is None or comp.steps is None or rng != comp.steps or rng[1] <= rng[0]:
+        return False
+    lo, hi = rng
+    return all(checker.memo.get(comp.time_slice(a, b).signature()) is not None
+               and _ok(checker.memo[comp.time_slice(a, b).signature()])
+               for a, b in ((lo, hi - 1), (lo + 1, hi)))
+
+
 def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] = (),
                              switches: str = "trn", check: Check | None = None,
                              solver: FeasibilitySolver | None = None,
-                             tolerance: float | None = None) -> SearchResult:
+                             tolerance: float | None = None,
+                             recheck: Check | None = None) -> SearchResult:
     """Algorithm 1. `relaxations` are tried loose to tight, the full graph last (added if
     missing). `check` defaults to `solver.solve` with warm starts from earlier feasible
-    solutions; `solver` also provides convergence points when `check` returns bools."""
+    solutions; `solver` also provides convergence points when `check` returns bools.
+
+    `recheck` (optional) is the second opinion on a component whose time search ends with its
+    whole range: the component failed, but its two largest strict slices (all steps but the
+    last, all but the first) are feasible. That is what a cold-started solver failing on a
+    large, feasible graph looks like, so before the whole component becomes a conflict it is
+    solved again, warm-started from those slices' solutions (`recheck` must use them). Only a
+    real solution turns the verdict (sound either way); without `recheck` the component is
+    returned as infeasible, as Alg. 1 has it."""
     unknown = set(switches) - set("trng")
     if unknown:
         raise ValueError(f"unknown switches {''.join(sorted(unknown))!r} (allowed: t, r, n, g)")
@@ -216,6 +237,12 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
         for comp in g_r.connected_components():
             if "t" in switches:
                 feasible, rng = binary_search_time(comp, checker)
+                if not feasible and recheck is not None and _whole_range_failed(comp, rng, checker):
+                    second = recheck(comp)
+                    if _ok(second):
+                        checker.memo[comp.signature()] = second
+                        stats.rechecks_feasible += 1
+                        feasible, rng = True, None
             else:
                 feasible = checker(comp)
                 rng = None if feasible else comp.steps

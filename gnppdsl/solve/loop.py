@@ -429,6 +429,22 @@ class _Checker:
             self.values.update(known.values)
         return known
 
+    def recheck(self, g: Any) -> Any:
+        """Second opinion on an infeasible g whose large strict time slices are feasible (see
+        `find_infeasible_subgraph`): forget its verdict and solve it again, now warm-started
+        from every value known in this plan (the slices' solutions among them). A feasible
+        answer is a real solution (re-evaluated by the solver's verdict); an infeasible one
+        stands as before."""
+        key = g.signature()
+        old = self.results.pop(key, None)
+        self.run.say(f"  {g.name}: infeasible, but its slices without the first or the last step are "
+                     f"feasible; solving it again from their solutions")
+        r = self.solve(g)
+        if not r.feasible and old is not None:
+            self.results[key] = old
+            return old
+        return r
+
     def infer_components(self, g: Any, r: Any) -> None:
         """Verdicts on the components of an infeasible g without an NLP (Property 4.5).
 
@@ -838,7 +854,9 @@ class _Run:
             found = None
             for comp in comps:
                 search = find_infeasible_subgraph(comp, (), sw.replace("r", "").replace("g", ""), check=checker,
-                                                  solver=solver, tolerance=self.options.tolerance)
+                                                  solver=solver, tolerance=self.options.tolerance,
+                                                  recheck=checker.recheck)
+                self.stats.rechecks_feasible += search.stats.rechecks_feasible
                 self.heuristic_solves += search.stats.heuristic_solves
                 if search.subgraph is not None:
                     found = search.subgraph

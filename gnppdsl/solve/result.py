@@ -79,6 +79,7 @@ class Stats:
     db_infeasible_hits: int = 0
     reused_solutions: int = 0         # subgraphs shown feasible by earlier solutions (no NLP)
     reuse_time: float = 0.0           # seconds spent evaluating those
+    rechecks_feasible: int = 0        # failed graphs solved on a second try from their slices' solutions
     screened_levels: int = 0          # relaxation levels skipped: nearly hold at the full graph's x*
     inferred_verdicts: int = 0        # infeasible components located at an infeasible graph's x*
     N0: int | None = None             # length of the first logical plan

@@ -199,3 +199,55 @@ def test_unconstrained_variables_get_values_in_bounds():
     res = find_infeasible_subgraph(g, [], "trn")
     assert res.feasible and res.complete_values
     assert list(res.values[free]) == [0.5, 0.0]
+
+
+def _flaky_whole(graph, solver):
+    """A check that fails `graph` itself on its first solve (as a cold-started solver can on a
+    large feasible graph) and solves every other subgraph for real."""
+    state = {"failed": 0}
+
+    def check(sub):
+        if sub.signature() == graph.signature() and not state["failed"]:
+            state["failed"] += 1
+            r = solver.solve(sub)
+            return type(r)(False, r.values, {ref: 1.0 for ref in sub.factor_refs}, 1.0, 1.0, 0.0, 0,
+                           "forced failure", 1)
+        return solver.solve(sub)
+    return check, state
+
+
+def test_recheck_rescues_a_failed_graph_whose_slices_are_feasible():
+    vs, fs = chain(6, conflict_at=None)             # feasible
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    check, state = _flaky_whole(g, s)
+    seen = []
+
+    def recheck(sub):
+        seen.append(sub.signature())
+        return s.solve(sub)
+
+    res = find_infeasible_subgraph(g, [], "tn", check=check, solver=s, recheck=recheck)
+    assert state["failed"] == 1 and seen == [g.signature()]
+    assert res.feasible and res.stats.rechecks_feasible == 1
+    worst, _ = max_violation(fs, res.values)
+    assert worst <= TOL
+    # without a second opinion Alg. 1 returns the whole graph as the infeasible subgraph
+    check, _ = _flaky_whole(g, s)
+    res2 = find_infeasible_subgraph(g, [], "tn", check=check, solver=s)
+    assert not res2.feasible and res2.subgraph.signature() == g.signature()
+
+
+def test_recheck_keeps_a_real_whole_range_conflict():
+    vs, fs = chain(1, conflict_at=0)                # steps 0..1 are exactly the conflict
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    calls = []
+
+    def recheck(sub):
+        calls.append(sub.signature())
+        return s.solve(sub)
+
+    res = find_infeasible_subgraph(g, [], "t", solver=s, recheck=recheck)
+    assert not res.feasible and res.time_range == (0, 1) and calls == [g.signature()]
+    assert confirm_infeasible(res.subgraph)
