@@ -99,7 +99,7 @@ def test_planar_scene_attributes():
 
 def test_lab_scene_matches_paper():
     """The paper's Lab geometry (Sec. VIII-A, robotics issue): table, bases, block size."""
-    for f in ("lab.yaml", "lab_obstacles.yaml"):
+    for f in ("lab.yaml", "lab_obstacles.yaml", "lab4.yaml"):
         sc = yaml.safe_load((EXAMPLES / "lab" / f).read_text())
         t = sc["objects"]["table"]
         assert t["size"][:2] == [2.3, 1.24]
