@@ -30,6 +30,13 @@ class ConvexBody:
     shapes: list
     placements: list[np.ndarray]
     _spheres: dict = field(default_factory=dict)
+    _identity: tuple | None = None
+
+    def identity(self) -> tuple[bool, ...]:
+        """Per shape: is its placement the identity (cached; placements are fixed)."""
+        if self._identity is None or len(self._identity) != len(self.placements):
+            self._identity = tuple(bool(np.array_equal(M, np.eye(4))) for M in self.placements)
+        return self._identity
 
     def bounding_sphere(self, planar: bool = False) -> tuple[np.ndarray, float]:
         """(centre in the body frame, radius) of a sphere containing every shape; `planar`: a
@@ -64,6 +71,14 @@ def _request():
 _REQ = None
 
 
+def _placed(R, p, M, identity: bool):
+    """coal transform of a shape placed at M in a body at (R, p); a scene object's identity
+    placement skips the two products (R @ I = R, R @ 0 + p = p up to the sign of zeros)."""
+    if identity:
+        return _transform(R, p)
+    return _transform(R @ M[:3, :3], R @ M[:3, 3] + p)
+
+
 def witness(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB, with_shapes: bool = False):
     """Minimum signed distance between two bodies at world poses, with the world normal
     (gradient w.r.t. B's translation) and the two witness points in world coordinates."""
@@ -72,10 +87,10 @@ def witness(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB, with_shapes:
     if _REQ is None:
         _REQ = _request()
     best = None
-    for sa, Ma in zip(body_a.shapes, body_a.placements):
-        Ta = _transform(RA @ Ma[:3, :3], RA @ Ma[:3, 3] + pA)
-        for sb, Mb in zip(body_b.shapes, body_b.placements):
-            Tb = _transform(RB @ Mb[:3, :3], RB @ Mb[:3, 3] + pB)
+    Tbs = [_placed(RB, pB, Mb, i) for Mb, i in zip(body_b.placements, body_b.identity())]
+    for sa, Ma, ia in zip(body_a.shapes, body_a.placements, body_a.identity()):
+        Ta = _placed(RA, pA, Ma, ia)
+        for sb, Mb, Tb in zip(body_b.shapes, body_b.placements, Tbs):
             res = coal.DistanceResult()
             d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
             if best is None or d < best[0]:

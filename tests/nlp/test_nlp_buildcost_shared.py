@@ -189,3 +189,30 @@ def test_frame_chain_shares_joints_and_matches_pinocchio(geo):
             T = geo.fk_matrix("right", qv, fr, base)
             assert np.allclose(row[:9].reshape(3, 3, order="F"), T[:3, :3], atol=1e-12)
             assert np.allclose(row[9:], T[:3, 3], atol=1e-12)
+
+
+def test_box_feature_fast_path_equals_the_plane_product():
+    """`shape_feature` on boxes tests the six planes in plain floats; it must classify every
+    boundary point (faces, edges, corners, 3-D and planar) exactly as the numpy product over
+    `_planes` that other polytopes use."""
+    import coal
+    from gnppdsl.geometry import features as FT
+    box = coal.Box(0.06, 0.15, 0.09)
+    h = np.array([0.03, 0.075, 0.045])
+    rng = np.random.default_rng(4)
+    pts = []
+    for _ in range(300):
+        p = rng.uniform(-1, 1, 3) * h
+        fix = rng.random(3) < 0.5                       # snap 1-3 coordinates onto faces
+        fix[rng.integers(3)] = True
+        p[fix] = np.sign(rng.normal(size=3))[fix] * h[fix] * (1 + rng.normal(0, 1e-9, 3)[fix])
+        pts.append(tuple(float(v) for v in p))
+    for planar in (False, True):
+        fast = [FT.shape_feature(box, p, planar) for p in pts]
+        FT._KIND[id(box)] = (box, "other", 0.0, None)      # force the generic numpy path
+        try:
+            slow = [FT.shape_feature(box, p, planar) for p in pts]
+        finally:
+            FT._KIND.pop(id(box))
+        assert fast == slow
+        assert {f[0] for f in fast if f} >= ({"edge", "vertex"} if planar else {"face", "edge", "vertex"})
