@@ -335,6 +335,10 @@ class _Checker:
         r = None
         if self.local_first and self.solver.options.restarts > 0:
             r = self.local_solve(g, warm)
+            if r is None and not trajs:
+                # the verdict's first run would repeat the local one exactly: start it from
+                # the problem's initial guess instead (the random restarts follow as usual)
+                warm = {}
         if r is None:
             # ipopt's wall-time limit is fixed when a graph's NLP is assembled: give it what is left
             self.solver.options.time_limit = max(0.05, run.remaining())
@@ -362,7 +366,8 @@ class _Checker:
         residual (Lab 1, no_col_traj: 2.7e-5 on a placement row) was restarted from a random
         point and came back with a feasible but far-off configuration, from which the motions
         of the full graph did not converge; the polish alone solves it near the start. A
-        failure costs one extra run of a small level."""
+        failure costs one extra run of a small level (the verdict solve then starts from the
+        initial guess instead of repeating this run)."""
         run = self.run
         opts = self.solver.options
         saved = opts.restarts
