@@ -14,12 +14,13 @@ one; robot links are merged into one hull); the distance is the minimum over sha
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
-from gnppdsl.geometry.features import N_OUT, feature_model, model_expression
+from gnppdsl.geometry.features import N_OUT, feature_list, feature_model, model_expression, placement_floats
 
 
 @dataclass
@@ -121,6 +122,14 @@ class WitnessCallback(ca.Callback):
             cb_, rb = body_b.bounding_sphere(planar)
             self._bounds = (ca_.tolist(), ra, cb_.tolist(), rb)
         self.calls = 0
+        # one shape on each side (scene objects, merged robot links): `_model_single` queries coal
+        # directly with reused transforms and runs the feature model on plain floats
+        self._single = None
+        if len(body_a.shapes) == 1 and len(body_b.shapes) == 1 and features:
+            import coal
+            self._single = (body_a.shapes[0], body_a.placements[0], placement_floats(body_a.placements[0]),
+                            coal.Transform3s(), body_b.shapes[0], body_b.placements[0],
+                            placement_floats(body_b.placements[0]), coal.Transform3s())
         # ipopt evaluates constraints, their Jacobian and the Hessian at the same point: remember
         # recent answers (keyed by the exact input bytes) so coal runs once per point.
         self._memo: dict[bytes, np.ndarray] = {}
@@ -165,6 +174,45 @@ class WitnessCallback(ca.Callback):
         return out
 
     def _model(self, x: np.ndarray) -> np.ndarray:
+        if self._single is not None and self.far_field is None:
+            out = self._model_single(x)
+            if out is not None:
+                return out
+        return self._model_general(x)
+
+    def _model_single(self, x: np.ndarray) -> np.ndarray | None:
+        """`_model_general` for one shape per body: the same coal query and the same arithmetic
+        (bitwise equal outputs, `tests/geometry/test_geometry_fastpath.py`) at about half the
+        cost; None for a degenerate query (touching exactly), which the general path handles."""
+        import coal
+        global _REQ
+        if _REQ is None:
+            _REQ = _request()
+        sa, Ma, pla, Ta, sb, Mb, plb, Tb = self._single
+        for T, R, p, M, identity in ((Ta, x[0:9].reshape(3, 3, order="F"), x[9:12], Ma, pla[2]),
+                                     (Tb, x[12:21].reshape(3, 3, order="F"), x[21:24], Mb, plb[2])):
+            if identity:                        # as `_placed`, with the transform reused
+                T.setRotation(R)
+                T.setTranslation(p)
+            else:
+                T.setRotation(R @ M[:3, :3])
+                T.setTranslation(R @ M[:3, 3] + p)
+        res = coal.DistanceResult()
+        d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
+        n = res.normal
+        nn = math.sqrt(n.dot(n))                # == np.linalg.norm(n) (the same dot product)
+        if not math.isfinite(d) or nn < 1e-12:
+            return None
+        self.calls += 1
+        xl = x.tolist()
+        RA_ = [xl[0:9:3], xl[1:9:3], xl[2:9:3]]     # rows of the column-major 3x3
+        RB_ = [xl[12:21:3], xl[13:21:3], xl[14:21:3]]
+        n_ = [v / nn for v in n.tolist()]
+        return np.array(feature_list(sa, pla, sb, plb, RA_, xl[9:12], RB_, xl[21:24], d, n_,
+                                     res.getNearestPoint1().tolist(), res.getNearestPoint2().tolist(),
+                                     self.planar))
+
+    def _model_general(self, x: np.ndarray) -> np.ndarray:
         RA = x[0:9].reshape(3, 3, order="F")
         pA = x[9:12]
         RB = x[12:21].reshape(3, 3, order="F")

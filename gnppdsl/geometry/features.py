@@ -183,22 +183,40 @@ def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb, planar
     Ma, Mb: 4x4 shape placements in the body frames; (RA, pA), (RB, pB): body world poses;
     d, n, wa, wb: coal's distance, normal (A to B) and world witness points. `planar`: both
     bodies are z-extrusions moving in the plane z = 0 (`sdist2`)."""
-    RA_, RB_ = RA.tolist(), RB.tolist()
-    pA_, pB_, n_ = pA.tolist(), pB.tolist(), n.tolist()
-    la = _mtv(RA_, _sub(wa.tolist(), pA_))      # witness points in the body frames
-    lb = _mtv(RB_, _sub(wb.tolist(), pB_))
+    return np.array(feature_list(shape_a, placement_floats(Ma), shape_b, placement_floats(Mb),
+                                 RA.tolist(), pA.tolist(), RB.tolist(), pB.tolist(), d, n.tolist(),
+                                 wa.tolist(), wb.tolist(), planar))
+
+
+def placement_floats(M: np.ndarray) -> tuple:
+    """(rotation rows, translation, is identity) of a 4x4 shape placement in plain floats, the
+    form `feature_list` takes (callers with fixed placements compute it once)."""
+    return M[:3, :3].tolist(), M[:3, 3].tolist(), bool(np.array_equal(M, np.eye(4)))
+
+
+def feature_list(shape_a, pla: tuple, shape_b, plb: tuple, RA_, pA_, RB_, pB_, d: float, n_, wa_, wb_,
+                 planar: bool = False) -> list:
+    """`feature_model` on plain floats (rotations as row lists, vectors as 3-sequences,
+    placements from `placement_floats`), returning the N_OUT numbers as a list. Why a second
+    entry: the distance callback runs this once per coal query, and converting every argument
+    from numpy costs as much as the model itself; both entries do the same arithmetic in the
+    same order, so their outputs are bitwise equal."""
+    la = _mtv(RA_, _sub(wa_, pA_))             # witness points in the body frames
+    lb = _mtv(RB_, _sub(wb_, pB_))
     # fallback layout unless the feature model reproduces d (safe non-parallel default directions)
     out = [0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
            0.0, 0.0, n_[0], n_[1], n_[2]]
-    RMa, RMb = Ma[:3, :3].tolist(), Mb[:3, :3].tolist()
-    tMa, tMb = Ma[:3, 3].tolist(), Mb[:3, 3].tolist()
-    fa = shape_feature(shape_a, _mtv(RMa, _sub(la, tMa)), planar)
-    fb = shape_feature(shape_b, _mtv(RMb, _sub(lb, tMb)), planar)
+    RMa, tMa, ida = pla
+    RMb, tMb, idb = plb
+    # in the shape frame; an identity placement gives the same point (up to the sign of zeros,
+    # which the face classification does not see)
+    fa = shape_feature(shape_a, la if ida else _mtv(RMa, _sub(la, tMa)), planar)
+    fb = shape_feature(shape_b, lb if idb else _mtv(RMb, _sub(lb, tMb)), planar)
     if planar:                                  # same height for both: the model is the 2-D distance
         la, lb = (la[0], la[1], 0.0), (lb[0], lb[1], 0.0)
     out[5:8], out[8:11] = la, lb
     if fa is None or fb is None:
-        return np.array(out)
+        return out
     ra = rb = 0.0
     dirs = []                                   # (direction in the owner's body frame, owner)
     for (kind, data), RM, tM, owner in ((fa, RMa, tMa, 0), (fb, RMb, tMb, 1)):
@@ -236,7 +254,7 @@ def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb, planar
         val = s * _norm(v) - ra - rb
         mode = 2
     if mode < 0 or abs(val - d) > 1e-7 * max(1.0, abs(d)):
-        return np.array(out)                    # feature detection disagrees with coal: fallback
+        return out                              # feature detection disagrees with coal: fallback
     out[0:4] = [0.0, 0.0, 0.0, 0.0]
     out[mode] = 1.0
     out[4] = s
@@ -249,7 +267,7 @@ def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb, planar
         else:   # unused second direction: keep u1 x u2 away from zero (no 0/0 in unused branches)
             out[14:17] = _perp_unit(dirs[0][0])
     out[19], out[20] = ra, rb
-    return np.array(out)
+    return out
 
 
 def model_expression(o, RA, pA, RB, pB):

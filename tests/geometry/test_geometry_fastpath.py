@@ -1,0 +1,124 @@
+"""The distance callback's fast paths give bitwise the same outputs as the general path.
+
+Why bitwise: the callback output is the local contact model that ipopt differentiates; a change
+in the last bit changes the iterates, and the fast paths exist only to be cheaper. Checked over
+random poses (generic vertex/edge/face contacts), axis-aligned stacks (parallel faces), planar
+bodies, curved shapes (the fallback model), penetration and non-identity shape placements.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gnppdsl.geometry.context import GeometryContext
+from gnppdsl.geometry.distance import ConvexBody, WitnessCallback
+from gnppdsl.geometry.kinematics import quat_to_rotation
+from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
+
+I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def _obj(name, kind, size):
+    return SceneObject(name, SceneShape(kind, size, None), I7)
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    objs = [_obj("box", "box", (0.3, 0.2, 0.1)), _obj("cyl", "cylinder", (0.05, 0.3)),
+            _obj("ball", "sphere", (0.07,)), _obj("box2", "box", (0.1, 0.4, 0.2)), _obj("disc", "circle", (0.1,))]
+    robots = {"left": SceneRobot("left", "urdf", model="panda", ee="panda_hand_tcp", base=I7)}
+    return GeometryContext(Scene("t", 3, robots, {o.name: o for o in objs}))
+
+
+def _R(q) -> np.ndarray:
+    import casadi as ca
+    return np.array(ca.Function("r", [], [quat_to_rotation(ca.DM(q))])()["o0"])
+
+
+def _inputs(rng, n: int, spread: float, planar: bool = False, aligned: bool = False) -> list[np.ndarray]:
+    xs = []
+    for _ in range(n):
+        parts = []
+        for _side in range(2):
+            if planar:
+                t = rng.uniform(-np.pi, np.pi)
+                R = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1.0]])
+                p = np.r_[rng.uniform(-spread, spread, 2), 0.0]
+            else:
+                q = rng.normal(size=4)
+                R = np.eye(3) if aligned else _R(q / np.linalg.norm(q))
+                p = rng.uniform(-spread, spread, 3)
+                if aligned:     # stacked boxes: parallel faces, edges and touching corners
+                    p = np.round(p, 2)
+            parts += [R.reshape(-1, order="F"), p]
+        xs.append(np.concatenate(parts))
+    return xs
+
+
+def _check(cb: WitnessCallback, xs: list[np.ndarray]) -> dict[int, int]:
+    """Fast path == general path bitwise on every input; returns the count per model mode."""
+    assert cb._single is not None
+    modes: dict[int, int] = {}
+    for x in xs:
+        fast = cb._model_single(x)
+        slow = cb._model_general(x)
+        if fast is None:        # degenerate query: the general path answers it
+            continue
+        assert fast.dtype == slow.dtype and fast.shape == slow.shape
+        assert fast.tobytes() == slow.tobytes(), (x.tolist(), fast.tolist(), slow.tolist())
+        m = int(np.argmax(slow[:4]))
+        modes[m] = modes.get(m, 0) + 1
+    return modes
+
+
+@pytest.mark.parametrize("a,b", [("box", "box2"), ("box", "ball"), ("box", "cyl"), ("cyl", "ball"),
+                                 (("link", "left", "panda_hand"), "box"),
+                                 (("link", "left", "panda_link5"), ("link", "left", "panda_link7")),
+                                 (("link", "left", "panda_leftfinger"), "box2")])
+def test_single_shape_path_equals_general_path(ctx, a, b):
+    rng = np.random.default_rng(7)
+    cb = ctx._callback(a, b, False)
+    modes = _check(cb, _inputs(rng, 150, 0.25) + _inputs(rng, 150, 0.12))
+    assert sum(modes.values()) >= 250
+    if "cyl" not in (a, b):
+        assert set(modes) & {0, 1, 2}, modes     # the feature model itself is exercised
+
+
+def test_single_shape_path_parallel_faces(ctx):
+    rng = np.random.default_rng(3)
+    modes = _check(ctx._callback("box", "box2", False), _inputs(rng, 300, 0.3, aligned=True))
+    assert sum(modes.values()) > 200
+
+
+@pytest.mark.parametrize("a,b", [("box", "box2"), ("box", "disc"), ("disc", "box2")])
+def test_single_shape_path_planar(ctx, a, b):
+    rng = np.random.default_rng(11)
+    modes = _check(ctx._callback(a, b, True), _inputs(rng, 200, 0.3, planar=True))
+    assert set(modes) & {1, 2}, modes
+
+
+def test_single_shape_path_with_placements(ctx):
+    """Shapes placed off the body origin (the general path composes the placement)."""
+    rng = np.random.default_rng(5)
+    box, ball = ctx.body("box"), ctx.body("ball")
+    M = np.eye(4)
+    M[:3, :3] = _R(np.array([0.2, -0.1, 0.3, 0.9]) / np.linalg.norm([0.2, -0.1, 0.3, 0.9]))
+    M[:3, 3] = (0.05, -0.02, 0.03)
+    a = ConvexBody("box_off", list(box.shapes), [M])
+    b = ConvexBody("ball_off", list(ball.shapes), [np.linalg.inv(M)])
+    cb = WitnessCallback("t_off", a, b)
+    modes = _check(cb, _inputs(rng, 200, 0.2))
+    assert set(modes) & {0, 1, 2}, modes
+
+
+def test_callback_uses_the_fast_path_and_agrees_with_coal(ctx):
+    """The callback (through casadi) answers via the fast path, with coal's distance."""
+    import casadi as ca
+    cb = ctx._callback(("link", "left", "panda_hand"), "box", False)
+    rng = np.random.default_rng(2)
+    xs = _inputs(rng, 20, 0.2)
+    calls = cb.calls
+    for x in xs:
+        o = np.array(cb(ca.DM(x))).ravel()
+        assert o.tobytes() == cb._model_general(x).tobytes()
+    assert cb.calls > calls
