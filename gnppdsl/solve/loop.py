@@ -311,8 +311,20 @@ class _Checker:
             modes = g.apply_relaxation({TRAJ}, "modes")
             if modes.n_factors:
                 # the keyframes first: every factor at the mode switches (a relaxation of g),
-                # also when relaxations already gave them values (they may lack collisions)
-                r0 = self.solve(modes)
+                # also when relaxations already gave them values (they may lack collisions);
+                # For the plan's own graph (not a subgraph Alg. 1 checks): one run from the
+                # warm start and its polish, no random restarts. An infeasible verdict here only
+                # starts the conflict search, whose subgraphs are solved with restarts (and a
+                # whole multi-step component gets a second opinion), so it never becomes a
+                # conflict by itself; random restarts of a 10-step Lab graph cost 100+ s.
+                opts = self.solver.options
+                saved = opts.restarts
+                if key == self.graph.signature():
+                    opts.restarts = 0
+                try:
+                    r0 = self.solve(modes)
+                finally:
+                    opts.restarts = saved
                 if not r0.feasible:
                     self.results[key] = r0
                     return r0          # a relaxation is infeasible, so g is (Property 4.4)
@@ -887,8 +899,9 @@ class _Run:
     @staticmethod
     def staged(graph: Any, levels: list) -> list:
         """Order "staged": the small relaxation levels (at most STAGED_FRACTION of the factors of
-        the mode-switch graph), then the full graph, then the other levels, then the full graph
-        again (its cached verdict: Alg. 1 searches it when no level gives a conflict).
+        the mode-switch graph), then the full graph, then the other levels (only the mode-switch
+        graph among them when it is one), then the full graph again (its cached verdict: Alg. 1
+        searches it when no level gives a conflict).
 
         Why (measured on Lab 4, two Panda arms): the cost of an ipopt iteration grows with the
         collision factors between robot links and objects, ~0.1 s on a 6-step mode-switch graph
@@ -899,9 +912,18 @@ class _Run:
         full graph and only help to locate a conflict once it is infeasible. Same verdicts as
         Alg. 1: every level is still a relaxation of the plan's graph."""
         full = levels[-1]
-        modes = graph.apply_relaxation({TRAJ}, "modes").n_factors or graph.n_factors
+        modes_graph = graph.apply_relaxation({TRAJ}, "modes")
+        modes = modes_graph.n_factors or graph.n_factors
         small = [lv for lv in levels[:-1] if lv[1].n_factors <= STAGED_FRACTION * modes]
         large = [lv for lv in levels[:-1] if lv[1].n_factors > STAGED_FRACTION * modes]
+        # When a large level is the mode-switch graph itself (the full graph without motions),
+        # it alone is searched: the full graph's check already solved it (no new NLP before
+        # Alg. 1 starts on its slices), while every other large level costs a whole new solve
+        # of about the full graph's size (Lab 5: 145 s for no_time_traj, 3 starts).
+        key = frozenset(modes_graph.factor_refs)
+        same = [lv for lv in large if frozenset(lv[1].factor_refs) == key]
+        if same and modes_graph.n_factors < graph.n_factors:
+            large = same
         return [*small, full, *large, full] if large else [*small, full]
 
     def nearly_holds(self, g_r: Any, x_star: dict) -> bool:

@@ -18,19 +18,20 @@ PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 
 
 class _G:
-    """A stand-in for a GraphNLP: only the factor counts matter to the level order."""
+    """A stand-in for a GraphNLP: only factor counts and factor sets matter to the level order."""
 
-    def __init__(self, n: int, modes: int | None = None):
+    def __init__(self, n: int, modes: int | None = None, tag: str = ""):
         self.n_factors, self._modes = n, modes
+        self.factor_refs = [(tag, i) for i in range(n)]
 
     def apply_relaxation(self, dropped, name=""):
         assert set(dropped) == {loop.TRAJ}
-        return _G(self._modes)
+        return _G(self._modes, tag="modes")
 
 
 def test_staged_puts_small_levels_first_and_large_ones_after_the_full_graph():
     full = (None, _G(300, modes=100))
-    a, b, c, d = ("a", _G(30)), ("b", _G(50)), ("c", _G(51)), ("d", _G(90))
+    a, b, c, d = ("a", _G(30, tag="a")), ("b", _G(50, tag="b")), ("c", _G(51, tag="c")), ("d", _G(90, tag="d"))
     # a and b have at most half of the 100 mode-switch factors; c and d more
     assert loop._Run.staged(full[1], [a, b, c, d, full]) == [a, b, full, c, d, full]
     # no large level: the full graph once, last (Alg. 1 searches it if it is infeasible)
@@ -38,6 +39,9 @@ def test_staged_puts_small_levels_first_and_large_ones_after_the_full_graph():
     # no trajectories: the mode-switch graph is the full graph
     plain = (None, _G(80, modes=0))
     assert loop._Run.staged(plain[1], [a, c, plain]) == [a, plain, c, plain]
+    # a large level that is the mode-switch graph itself is the only one searched
+    modes_level = ("no_traj", _G(100, tag="modes"))
+    assert loop._Run.staged(full[1], [a, c, d, modes_level, full]) == [a, full, modes_level, full]
 
 
 @pytest.mark.parametrize("name, n", [("p3_occupied", 4), ("t1_swap", None)])
