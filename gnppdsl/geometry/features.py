@@ -138,24 +138,28 @@ def shape_feature(shape, p_local, planar: bool = False):
                 "cylinder" if isinstance(shape, coal.Cylinder) else
                 "box" if isinstance(shape, coal.Box) else "other",
                 float(getattr(shape, "radius", 0.0)),
-                tuple(float(v) for v in shape.halfSide) if isinstance(shape, coal.Box) else None)
+                tuple(float(v) for v in shape.halfSide) if isinstance(shape, coal.Box) else None,
+                _planes(shape))
         _KIND[id(shape)] = kind
-    if kind[1] == "sphere" or (planar and kind[1] == "cylinder"):
-        return ("sphere", kind[2])
-    pl = _planes(shape)
+    _, k, radius, half, pl = kind
+    if k == "sphere" or (planar and k == "cylinder"):
+        return ("sphere", radius)
     if pl is None:
         return None
-    if kind[1] == "box":
+    if k == "box":
         # the six planes [+x, +y, +z, -x, -y, -z] of `_planes` in plain floats: the same
         # n . p - o as the numpy product (unit normals, exact), 5-10x cheaper
-        (x, y, z), (hx, hy, hz), tol = p_local, kind[3], pl.tol
+        (x, y, z), (hx, hy, hz), tol = p_local, half, pl.tol
         gaps = (x - hx, y - hy, z - hz, -x - hx, -y - hy, -z - hz)
         active = [i for i in ((0, 1, 3, 4) if planar else range(6)) if abs(gaps[i]) < tol]
     else:
-        near = np.abs(pl.N @ np.asarray(p_local) - pl.O) < pl.tol
+        g = pl.N @ p_local                      # |n . p - o| in place, indices as Python ints
+        g -= pl.O
+        np.abs(g, out=g)
+        near = g < pl.tol
         if planar:
             near &= pl.side                     # side planes only
-        active = np.flatnonzero(near)
+        active = near.nonzero()[0].tolist()
     if len(active) == 0:
         return None
     if planar:
