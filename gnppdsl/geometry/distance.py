@@ -132,7 +132,7 @@ class WitnessCallback(ca.Callback):
                             placement_floats(body_b.placements[0]), coal.Transform3s())
         # ipopt evaluates constraints, their Jacobian and the Hessian at the same point: remember
         # recent answers (keyed by the exact input bytes) so coal runs once per point.
-        self._memo: dict[bytes, np.ndarray] = {}
+        self._memo: dict[bytes, bytes] = {}
         self.hits = 0
         self.construct(name, {})
 
@@ -149,29 +149,43 @@ class WitnessCallback(ca.Callback):
         return ca.Sparsity.dense(N_OUT, 1)
 
     # Buffer evaluation: casadi hands over raw memory, skipping DM conversions (about 2x faster).
+    # The memo holds the outputs as bytes keyed by the input bytes, so a repeated point (the
+    # Jacobian and Hessian at ipopt's current x) costs two byte copies and one dict lookup.
     def has_eval_buffer(self):
         return True
 
     def eval_buffer(self, arg, res):
-        x = np.frombuffer(arg[0], dtype=np.float64, count=24)
-        out = np.frombuffer(res[0], dtype=np.float64, count=N_OUT)
-        out[:] = self.model(x)
+        key = arg[0].tobytes()                  # arg[0], res[0]: memoryviews of 24 / N_OUT doubles
+        out = self._memo.get(key)
+        if out is None:
+            out = self._remember(key, self._model(np.frombuffer(key, dtype=np.float64)))
+        else:
+            self.hits += 1
+        res[0][:] = out
         return 0
 
     def eval(self, arg):
         return [ca.DM(self.model(np.array(arg[0], dtype=float).ravel()))]
 
     def model(self, x: np.ndarray) -> np.ndarray:
+        """The callback output at x (24 numbers), through the memo."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
         key = x.tobytes()
         out = self._memo.get(key)
-        if out is not None:
+        if out is None:
+            out = self._remember(key, self._model(x))
+        else:
             self.hits += 1
-            return out
-        out = self._model(x)
+        return np.frombuffer(out, dtype=np.float64).copy()
+
+    def _remember(self, key: bytes, out: np.ndarray) -> bytes:
+        b = np.asarray(out, dtype=np.float64).tobytes()
+        if len(b) != 8 * N_OUT:
+            raise ValueError(f"distance model returned {len(b) // 8} numbers, expected {N_OUT}")
         if len(self._memo) >= 4096:
             self._memo.pop(next(iter(self._memo)))    # oldest first (dicts keep insertion order)
-        self._memo[key] = out
-        return out
+        self._memo[key] = b
+        return b
 
     def _model(self, x: np.ndarray) -> np.ndarray:
         if self._single is not None and self.far_field is None:

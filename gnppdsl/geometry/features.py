@@ -138,12 +138,12 @@ def shape_feature(shape, p_local, planar: bool = False):
                 "cylinder" if isinstance(shape, coal.Cylinder) else
                 "box" if isinstance(shape, coal.Box) else "other",
                 float(getattr(shape, "radius", 0.0)),
-                tuple(float(v) for v in shape.halfSide) if isinstance(shape, coal.Box) else None,
-                _planes(shape))
+                tuple(float(v) for v in shape.halfSide) if isinstance(shape, coal.Box) else None)
         _KIND[id(shape)] = kind
-    _, k, radius, half, pl = kind
+    _, k, radius, half = kind
     if k == "sphere" or (planar and k == "cylinder"):
         return ("sphere", radius)
+    pl = _planes(shape)
     if pl is None:
         return None
     if k == "box":

@@ -122,3 +122,20 @@ def test_callback_uses_the_fast_path_and_agrees_with_coal(ctx):
         o = np.array(cb(ca.DM(x))).ravel()
         assert o.tobytes() == cb._model_general(x).tobytes()
     assert cb.calls > calls
+
+
+def test_memo_answers_repeated_points_with_the_same_bytes(ctx):
+    """ipopt evaluates g, the Jacobian and the Hessian at one x: the second and later calls
+    are memo hits with bitwise the same output, inside an SX graph as in the NLP."""
+    import casadi as ca
+    cb = WitnessCallback("t_memo", ctx.body("box"), ctx.body("box2"))
+    xs = ca.SX.sym("x", 24)
+    f = ca.Function("f", [xs], [cb(xs)])
+    X = _inputs(np.random.default_rng(4), 30, 0.25)
+    first = [np.array(f(x)).ravel() for x in X]
+    assert (cb.calls, cb.hits) == (30, 0)
+    again = [np.array(f(x)).ravel() for x in X]
+    assert (cb.calls, cb.hits) == (30, 30)
+    for x, a, b in zip(X, first, again):
+        assert a.tobytes() == b.tobytes() == cb._model_general(x).tobytes()
+        assert cb.model(x).tobytes() == a.tobytes()
