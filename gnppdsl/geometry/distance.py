@@ -15,6 +15,7 @@ one; robot links are merged into one hull); the distance is the minimum over sha
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -178,8 +179,8 @@ class WitnessCallback(ca.Callback):
             self.hits += 1
         return np.frombuffer(out, dtype=np.float64).copy()
 
-    def _remember(self, key: bytes, out: np.ndarray) -> bytes:
-        b = np.asarray(out, dtype=np.float64).tobytes()
+    def _remember(self, key: bytes, out) -> bytes:
+        b = array("d", out).tobytes() if isinstance(out, list) else np.asarray(out, dtype=np.float64).tobytes()
         if len(b) != 8 * N_OUT:
             raise ValueError(f"distance model returned {len(b) // 8} numbers, expected {N_OUT}")
         if len(self._memo) >= 4096:
@@ -187,9 +188,10 @@ class WitnessCallback(ca.Callback):
         self._memo[key] = b
         return b
 
-    def _model(self, x: np.ndarray) -> np.ndarray:
+    def _model(self, x: np.ndarray):
+        """The callback output at x without the memo: a list or an array of N_OUT numbers."""
         if self._single is not None and self.far_field is None:
-            out = self._model_single(x)
+            out = self._single_list(x)
             if out is not None:
                 return out
         return self._model_general(x)
@@ -198,19 +200,31 @@ class WitnessCallback(ca.Callback):
         """`_model_general` for one shape per body: the same coal query and the same arithmetic
         (bitwise equal outputs, `tests/geometry/test_geometry_fastpath.py`) at about half the
         cost; None for a degenerate query (touching exactly), which the general path handles."""
+        out = self._single_list(x)
+        return None if out is None else np.array(out)
+
+    def _single_list(self, x: np.ndarray) -> list | None:
+        """`_model_single` as a list (what the memo stores as bytes, without a numpy array)."""
         import coal
         global _REQ
         if _REQ is None:
             _REQ = _request()
         sa, Ma, pla, Ta, sb, Mb, plb, Tb = self._single
-        for T, R, p, M, identity in ((Ta, x[0:9].reshape(3, 3, order="F"), x[9:12], Ma, pla[2]),
-                                     (Tb, x[12:21].reshape(3, 3, order="F"), x[21:24], Mb, plb[2])):
-            if identity:                        # as `_placed`, with the transform reused
-                T.setRotation(R)
-                T.setTranslation(p)
-            else:
-                T.setRotation(R @ M[:3, :3])
-                T.setTranslation(R @ M[:3, 3] + p)
+        # as `_placed`, with the transforms reused
+        RA = x[0:9].reshape(3, 3, order="F")
+        if pla[2]:
+            Ta.setRotation(RA)
+            Ta.setTranslation(x[9:12])
+        else:
+            Ta.setRotation(RA @ Ma[:3, :3])
+            Ta.setTranslation(RA @ Ma[:3, 3] + x[9:12])
+        RB = x[12:21].reshape(3, 3, order="F")
+        if plb[2]:
+            Tb.setRotation(RB)
+            Tb.setTranslation(x[21:24])
+        else:
+            Tb.setRotation(RB @ Mb[:3, :3])
+            Tb.setTranslation(RB @ Mb[:3, 3] + x[21:24])
         res = coal.DistanceResult()
         d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
         n = res.normal
@@ -221,10 +235,9 @@ class WitnessCallback(ca.Callback):
         xl = x.tolist()
         RA_ = [xl[0:9:3], xl[1:9:3], xl[2:9:3]]     # rows of the column-major 3x3
         RB_ = [xl[12:21:3], xl[13:21:3], xl[14:21:3]]
-        n_ = [v / nn for v in n.tolist()]
-        return np.array(feature_list(sa, pla, sb, plb, RA_, xl[9:12], RB_, xl[21:24], d, n_,
-                                     res.getNearestPoint1().tolist(), res.getNearestPoint2().tolist(),
-                                     self.planar))
+        n0, n1, n2 = n.tolist()
+        return feature_list(sa, pla, sb, plb, RA_, xl[9:12], RB_, xl[21:24], d, (n0 / nn, n1 / nn, n2 / nn),
+                            res.getNearestPoint1().tolist(), res.getNearestPoint2().tolist(), self.planar)
 
     def _model_general(self, x: np.ndarray) -> np.ndarray:
         RA = x[0:9].reshape(3, 3, order="F")
