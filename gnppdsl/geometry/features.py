@@ -55,8 +55,11 @@ def _norm(a) -> float:
 
 
 def _mv(R, v):
-    """R (rows) times v."""
-    return (_dot(R[0], v), _dot(R[1], v), _dot(R[2], v))
+    """R (rows) times v (`_dot` of each row, written out: this runs ~4 times per query)."""
+    r0, r1, r2 = R
+    x, y, z = v
+    return (r0[0] * x + r0[1] * y + r0[2] * z, r1[0] * x + r1[1] * y + r1[2] * z,
+            r2[0] * x + r2[1] * y + r2[2] * z)
 
 
 def _mtv(R, v):
