@@ -139,3 +139,23 @@ def test_memo_answers_repeated_points_with_the_same_bytes(ctx):
     for x, a, b in zip(X, first, again):
         assert a.tobytes() == b.tobytes() == cb._model_general(x).tobytes()
         assert cb.model(x).tobytes() == a.tobytes()
+
+
+def test_fk_matrix_memo_equals_fresh_pinocchio(ctx):
+    """The numeric FK memo (exact input bytes) and its reused pinocchio Data give bitwise the
+    values of a fresh Data, and callers cannot corrupt the memo through the returned array."""
+    import pinocchio as pin
+    from gnppdsl.geometry.robots import se3_to_matrix
+    r = ctx.robot("left")
+    rng = np.random.default_rng(9)
+    base = np.array([0.1, -0.2, 0.05, 0.0, 0.0, 0.3826834323650898, 0.9238795325112867])
+    qs = [rng.uniform(r.lower, r.upper) for _ in range(20)]
+    for _round in range(2):                   # second round: all memo hits
+        for q in qs:
+            for frame, b in (("panda_hand", None), ("panda_link4", base)):
+                T = ctx.fk_matrix("left", q, frame, b)
+                data = r.model.createData()
+                pin.framesForwardKinematics(r.model, data, r.to_pin_q(q))
+                ref = (r.base if b is None else se3_to_matrix(b)) @ np.array(data.oMf[r.frame_id(frame)].homogeneous)
+                assert T.tobytes() == ref.tobytes()
+                T[:] = 0.0                    # must not reach the memo
