@@ -712,6 +712,27 @@ class _Run:
         self.stats.logic_time += time.perf_counter() - t0
         return res
 
+    sweeping_restarts = 8                 # random starts behind a conflict without facts
+
+    def confirm_sweeping(self, sub_factors: Sequence[FactorInstance]) -> bool:
+        """A conflict whose partial states hold no fact (its factors come from `always` rules
+        only) matches every plan long enough: accepting it ends the search with "no plan".
+        Such a sweeping claim gets a stricter check first: the subgraph is solved again from
+        `sweeping_restarts` random starts; any solution refutes it (a false infeasible verdict,
+        e.g. a local minimum). True if the conflict is not sweeping or stays infeasible."""
+        from gnppdsl.nlp.graph import GraphNLP
+
+        if any(p.facts for p in to_partial_states(sub_factors)):
+            return True
+        solver = self.new_solver()
+        solver.options.restarts = max(solver.options.restarts, self.sweeping_restarts)
+        solver.options.noise = max(solver.options.noise, 1.0)
+        r = solver.solve(GraphNLP(list(sub_factors)), seed=self.options.seed + 1)
+        self.nlp_calls += 1
+        if not r.feasible and time.perf_counter() >= self.deadline:
+            raise _TimeUp()                  # cut short: not a confirmation
+        return not r.feasible
+
     def add_conflict(self, plan: Any, sub_factors: Sequence[FactorInstance], source: str,
                      relaxation: str) -> None:
         seq = to_partial_states(sub_factors)
@@ -785,6 +806,15 @@ class _Run:
                     continue
             outcome = self.evaluate(graph, use_db=self.db is not None)
             if outcome[0] == "conflict":
+                if not self.confirm_sweeping(outcome[1]):
+                    self.say("  plan blocked: a conflict without facts (it would forbid every plan) "
+                             "was found feasible from more starts")
+                    self.planner.block_plan(plan)
+                    self.conflicts.append(Conflict(
+                        tuple(PartialState.of(enumerate(s)) for s in plan.states),
+                        "blocked plan (a conflict without facts failed its confirmation): "
+                        + "; ".join(plan.names), (), "plan", "", self.stats.plans, 0))
+                    continue
                 self.add_conflict(plan, outcome[1], "nlp", outcome[2])
                 continue
             if outcome[0] == "solution":

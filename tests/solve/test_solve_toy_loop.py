@@ -187,3 +187,31 @@ def test_a_failed_joint_solve_of_feasible_components_is_never_a_conflict(monkeyp
     assert any("components feasible" in m for m in messages)
     assert [c.text for c in res.conflicts] == ["{parent(b1) = target, parent(b2) = s2}"]
     check_solution(compiled, res)
+
+
+def test_a_false_conflict_without_facts_is_refuted_not_learnt(monkeypatch):
+    """A conflict made only of `always` factors has empty partial states and would forbid every
+    plan. Here the first plan's evaluation is forced to claim a feasible `always` factor as
+    the conflict: the stricter confirmation solves it, so only that plan is blocked and the
+    problem is still solved."""
+    from gnppdsl.solve import loop
+
+    real = loop._Run.evaluate
+    forced = []
+
+    def lying(self, graph, use_db):
+        if not forced:
+            always = [f for f in graph.factor_instances if all(not p.facts for p in f.generator)]
+            assert always, "the toy domain has always-rules"
+            forced.append(always[0])
+            return ("conflict", (always[0],), "")
+        return real(self, graph, use_db)
+
+    monkeypatch.setattr(loop._Run, "evaluate", lying)
+    compiled = occupied_problem()
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=6))
+    assert forced and res.solved and res.stats.N == 4
+    check_solution(compiled, res)
+    assert res.conflicts[0].source == "plan" and "without facts" in res.conflicts[0].text
+    for c in res.conflicts[1:]:
+        check_conflict_infeasible(compiled, c)
