@@ -24,7 +24,7 @@ assembly (`gnppdsl.nlp.feasibility`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Iterable, Iterator
 
 import casadi as ca
 import numpy as np
@@ -461,24 +461,9 @@ class _Builder:
         if not hasattr(self.geometry, "fk_chain"):
             return
         frames: dict[tuple, set] = {}
-
-        def walk(x: Any) -> None:
-            if isinstance(x, Call):
-                if x.fn == "fk" and len(x.args) == 4:
-                    frames.setdefault((x.args[0], x.args[1], x.args[3]), set()).add(x.args[2])
-                for a in x.args:
-                    walk(a)
-            elif isinstance(x, Vec):
-                for a in x.items:
-                    walk(a)
-            elif isinstance(x, Index):
-                walk(x.base)
-            elif isinstance(x, Constraint):
-                walk(x.lhs)
-                walk(x.rhs)
-
-        for c in constraints:
-            walk(c)
+        for x in _calls(constraints):
+            if x.fn == "fk" and len(x.args) == 4:
+                frames.setdefault((x.args[0], x.args[1], x.args[3]), set()).add(x.args[2])
         self.shared_chains = {k for k, v in frames.items() if len(v) > 1}
 
     def expr(self, e: Any):
@@ -641,27 +626,24 @@ def _fname(name: str) -> str:
     return "h_" + "".join(ch if ch.isalnum() else "_" for ch in name)
 
 
-def _uses(e: Any, names: set[str]) -> set[str]:
-    found: set[str] = set()
-
-    def walk(x: Any) -> None:
+def _calls(xs: Iterable[Any]) -> Iterator[Call]:
+    """Every `Call` node in the expressions or constraints `xs`, nested calls included
+    (one walk for `_uses` and `_Builder.plan_chains`)."""
+    for x in xs:
         if isinstance(x, Call):
-            if x.fn in names:
-                found.add(x.fn)
-            for a in x.args:
-                walk(a)
+            yield x
+            yield from _calls(x.args)
         elif isinstance(x, Vec):
-            for a in x.items:
-                walk(a)
+            yield from _calls(x.items)
         elif isinstance(x, Index):
-            walk(x.base)
+            yield from _calls((x.base,))
         elif isinstance(x, Constraint):
-            walk(x.lhs)
-            walk(x.rhs)
+            yield from _calls((x.lhs, x.rhs))
 
-    for c in e:
-        walk(c)
-    return found
+
+def _uses(e: Any, names: set[str]) -> set[str]:
+    """The names among `names` called anywhere in the constraints `e`."""
+    return {x.fn for x in _calls(e) if x.fn in names}
 
 
 @dataclass(frozen=True)
