@@ -63,6 +63,9 @@ class SolverOptions:
     assembly: str = "auto"         # "SX" | "MX" | "auto" (MX when geometry primitives appear)
     cache_size: int = 512          # assembled NLPs kept (LRU) per FeasibilitySolver
     polish: bool = True            # re-solve an infeasible verdict with rho * 1e-4 from x*
+    polish_below: float = 1e-3     # polish at once (before random restarts) a start that ends
+                                   # this close to feasible: a stall near a solution, which
+                                   # restarts from random points only repeat from farther away
 
     def nlpsol_options(self) -> dict:
         if self.plugin == "sqpmethod":
@@ -605,6 +608,7 @@ class FeasibilitySolver:
         a = self.assemble(graph)
         best = None
         iters, starts = 0, 0
+        polished = False                 # the current best is a polished point
         for k in range(1 + max(0, self.options.restarts)):
             x0 = self._start(a, graph, warm_start, initial_guess, seed, k)
             x, slack, it, status = self._run(a, x0, self.options.regularisation)
@@ -612,10 +616,16 @@ class FeasibilitySolver:
             starts += 1
             values, per, worst = self._verdict(a, x)
             if best is None or worst < best[2]:
-                best = (values, per, worst, slack, status, x)
-            if worst <= tol:
+                best, polished = (values, per, worst, slack, status, x), False
+            if tol < worst <= self.options.polish_below and self.options.polish:
+                x, slack, it, status = self._run(a, x, self.options.regularisation * 1e-4)
+                iters += it
+                values, per, worst = self._verdict(a, x)
+                if worst < best[2]:
+                    best, polished = (values, per, worst, slack, status, x), True
+            if best[2] <= tol:
                 break
-        if best[2] > tol and self.options.polish:
+        if best[2] > tol and self.options.polish and not polished:
             # The pull towards the start can outweigh the L1 penalty of a badly scaled row
             # (gradient below rho): re-solve the best point with a much weaker pull before
             # believing an infeasible verdict.

@@ -241,3 +241,18 @@ def test_limited_memory_hessian_same_verdicts():
         r = FeasibilitySolver(options=SolverOptions(hessian="limited-memory")).solve(GraphNLP(fs))
         assert r.feasible is feasible
         assert (max_violation(fs, r.values)[0] <= TOL) is feasible
+
+
+def test_a_near_feasible_start_is_polished_before_random_restarts():
+    """1e-4 * x == 1e-4 * 5 (x = 5): the first start stalls with a small violation (the pull
+    towards the start outweighs the row's L1 penalty). The polish runs right after that start,
+    so the verdict is feasible after one start instead of after every random restart."""
+    v = pose("b", 0)
+    f = factor("t.scaled", [v], [Constraint(C("mul", Num(1e-4), Index(Slot(0), Num(0))), "==",
+                                            Num(5e-4))], 0)
+    first = FeasibilitySolver(options=SolverOptions(restarts=0, polish=False)).solve(GraphNLP([f]))
+    assert not first.feasible and first.max_violation <= 1e-3     # near-feasible stall
+    r = FeasibilitySolver(options=SolverOptions(restarts=3)).solve(GraphNLP([f]))
+    assert r.feasible and r.starts == 1 and r.values[v][0] == pytest.approx(5.0, abs=1e-3)
+    late = FeasibilitySolver(options=SolverOptions(restarts=3, polish_below=0.0)).solve(GraphNLP([f]))
+    assert late.starts == 4          # without the early polish every restart runs first
