@@ -15,6 +15,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from gnppdsl.ir.model import SOLVER_ORDERS   # light: no casadi, no solver
+
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
 CSV_FIELDS = ("problem", "algorithm", "seed", "status", "solved", "nlp_solves", "ipopt_runs", "nlp_time",
               "logic_time", "total_time", "cpu_time", "plans", "conflicts", "db_feasible_hits",
@@ -29,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=3, help="runs per algorithm and problem (seeds 0..N-1)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="seconds per run")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
-    parser.add_argument("--order", choices=("full_first", "relaxed_first", "staged"), default=None,
+    parser.add_argument("--order", choices=SOLVER_ORDERS, default=None,
                         help="gnpp: solve the full graph-NLP first and search for a conflict only when it "
                              "fails (full_first, default), relaxations first (relaxed_first), or the small "
                              "relaxations, then the full graph (staged)")

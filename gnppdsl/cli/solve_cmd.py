@@ -10,6 +10,8 @@ import argparse
 import os
 import sys
 
+from gnppdsl.ir.model import SOLVER_ORDERS   # light: no casadi, no solver
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("paths", nargs="+", metavar="PROBLEM",
@@ -22,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="subset of 'trng' for gnpp/rlgp: t = binary search on time, r = relaxations, "
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
-    parser.add_argument("--order", choices=("full_first", "relaxed_first", "staged"), default=None,
+    parser.add_argument("--order", choices=SOLVER_ORDERS, default=None,
                         help="gnpp/rlgp: solve the full graph-NLP first and search for a conflict only "
                              "when it fails (full_first, default), relaxations first (relaxed_first), or the "
                              "small relaxations, then the full graph (staged)")
