@@ -17,7 +17,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
+from gnppdsl.ir.expr import Call, Index, Num, Obj, Slot, Vec
 from gnppdsl.nlp.geometry_protocol import Body, Geometry
 
 
