@@ -65,8 +65,10 @@ def check_files(paths) -> CheckReport:
             load_scene(path, ws.reporter)
             continue
         if suffix != ".pntc":
-            ws.err(None, f"{path}: not a .pntc or scene .yaml file", "file-kind",
-                   ) if Path(path).exists() else ws.err(None, f"file not found: {path}", "missing-file")
+            if Path(path).exists():
+                ws.err(None, f"{path}: not a .pntc or scene .yaml file", "file-kind")
+            else:
+                ws.err(None, f"file not found: {path}", "missing-file")
             continue
         f = ws.parse(path)
         if f is None:
@@ -78,8 +80,8 @@ def check_files(paths) -> CheckReport:
         elif kind == "module":
             ws.check_module(path)
         else:
-            dom_path = ws.find_domain(f, [c for c in files if c != path and peek_header(Path(c))
-                                          and peek_header(Path(c))[0] == "domain"])
+            domains = [c for c in files if c != path and (peek_header(Path(c)) or ("",))[0] == "domain"]
+            dom_path = ws.find_domain(f, domains)
             if dom_path is not None:
                 ws.problem(path, dom_path)
     return CheckReport(ws.reporter, counts, files)
