@@ -33,7 +33,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from gnppdsl.geometry.robots import se3_to_matrix
+from gnppdsl.geometry.robots import matrix_to_se3, se3_to_matrix
 from gnppdsl.geometry.verify import joint_limit_violations, pair_distances, resting_on
 
 _FACT = re.compile(r"(\w+)\((\w+)\)\s*=\s*(\w+)")
@@ -53,12 +53,6 @@ class SolutionReport:
                 f"waypoints, min distance {self.min_distance:+.4f}, min link distance "
                 f"{self.min_link_distance:+.4f}")
         return "\n".join([head, *self.failures[:20]])
-
-
-def _matrix_to_se3(T: np.ndarray) -> np.ndarray:
-    import pinocchio as pin
-    q = pin.Quaternion(T[:3, :3].copy())
-    return np.r_[T[:3, 3], q.x, q.y, q.z, q.w]
 
 
 class _World:
@@ -88,7 +82,7 @@ class _World:
     def state(self) -> dict[str, Any]:
         st: dict[str, Any] = {r: np.asarray(q, float) for r, q in self.configs.items()}
         for name in self.ctx.scene.objects:
-            st[name] = _matrix_to_se3(self.matrix(name))
+            st[name] = matrix_to_se3(self.matrix(name))
         return st
 
 
@@ -169,7 +163,7 @@ def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, link_margin
                 if fail_grasp:
                     fail(f"{where}: grasp of {o} by {p}: {fail_grasp}")
             else:
-                chk = resting_on(ctx, o, _matrix_to_se3(To), p, _matrix_to_se3(w.matrix(p)),
+                chk = resting_on(ctx, o, matrix_to_se3(To), p, matrix_to_se3(w.matrix(p)),
                                  tol=rest_tolerance)
                 if not chk.ok:
                     fail(f"{where}: {o} does not rest on {p} (gap {chk.gap:+.4f}, centre over "
