@@ -313,7 +313,8 @@ class ReachabilityGraph:
 
     @property
     def start_position(self) -> np.ndarray:
-        """End-effector position at the home configuration (where the first action's travel starts)."""
+        """End-effector position at the home configuration. (The first action's travel is
+        costed from the home configuration itself, `query_from_config`, not from this point.)"""
         return self.fk_position(self.home)
 
     # ---- queries ------------------------------------------------------------------------------
