@@ -46,7 +46,10 @@ def _derived_consequences(task: SASTask, facts) -> tuple[set[Fact], set[Fact]]:
         rules = axioms.get(d, [])
         if val == 1 and len(rules) == 1:
             for c in rules[0].conditions:
-                (todo.append(c) if task.variables[c[0]].is_derived else implied.add(c))
+                if task.variables[c[0]].is_derived:
+                    todo.append(c)
+                else:
+                    implied.add(c)
         elif val == 0:
             for ax in rules:
                 if len(ax.conditions) != 1:
