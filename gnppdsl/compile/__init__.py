@@ -12,7 +12,7 @@ Modules (imported on demand, so `import gnppdsl.compile` stays cheap):
 """
 from __future__ import annotations
 
-import importlib
+from gnppdsl.lazy import lazy_getattr
 
 _EXPORTS = {
     "build_task": "gnppdsl.compile.task",
@@ -27,7 +27,4 @@ _EXPORTS = {
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name: str):
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'gnppdsl.compile' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

@@ -8,6 +8,8 @@ Names are loaded lazily so that importing a submodule stays cheap.
 """
 from __future__ import annotations
 
+from gnppdsl.lazy import lazy_getattr
+
 __all__ = ["to_partial_states", "conflict_str", "SubgraphDatabase", "semantic_graph", "contains"]
 
 _WHERE = {
@@ -17,9 +19,4 @@ _WHERE = {
 }
 
 
-def __getattr__(name: str):
-    if name in _WHERE:
-        import importlib
-
-        return getattr(importlib.import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'gnppdsl.conflicts' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _WHERE)

@@ -14,6 +14,8 @@ Names are loaded lazily so that importing a submodule stays cheap (clingo, numpy
 """
 from __future__ import annotations
 
+from gnppdsl.lazy import lazy_getattr
+
 _WHERE = {
     "IncrementalPlanner": "gnppdsl.logic.planner", "Plan": "gnppdsl.logic.planner",
     "PlanResult": "gnppdsl.logic.planner", "Status": "gnppdsl.logic.planner",
@@ -28,9 +30,4 @@ _WHERE = {
 __all__ = sorted(_WHERE)
 
 
-def __getattr__(name: str):
-    if name in _WHERE:
-        import importlib
-
-        return getattr(importlib.import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'gnppdsl.logic' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _WHERE)

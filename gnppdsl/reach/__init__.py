@@ -19,7 +19,7 @@ Typical use by the solve loop (R-LGP, `algorithm = rlgp`):
 """
 from __future__ import annotations
 
-import importlib
+from gnppdsl.lazy import lazy_getattr
 
 _EXPORTS = {
     "ReachSettings": "gnppdsl.reach.settings",
@@ -34,7 +34,4 @@ _EXPORTS = {
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name: str):
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'gnppdsl.reach' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _EXPORTS)
