@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gnppdsl.ir.model import SOLVER_ORDERS   # light: no casadi, no solver
+from gnppdsl.solve.result import algorithm_title   # light as well
 
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
 CSV_FIELDS = ("problem", "algorithm", "seed", "status", "solved", "nlp_solves", "ipopt_runs", "nlp_time",
@@ -42,15 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 @dataclass(frozen=True)
 class AlgorithmSpec:
     label: str          # as given, e.g. "gnpp_trn"
-    algorithm: str      # "gnpp" | "oneway"
+    algorithm: str      # "gnpp" | "oneway" | "rlgp"
     switches: str | None
 
     @property
     def title(self) -> str:
-        if self.algorithm == "oneway":
-            return "One-way"
-        name = "R-LGP" if self.algorithm == "rlgp" else "GNPP"
-        return f"{name}_{self.switches}" if self.switches else name
+        return algorithm_title(self.algorithm, self.switches)
 
 
 def parse_algorithms(text: str) -> list[AlgorithmSpec]:

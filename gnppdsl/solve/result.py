@@ -23,6 +23,14 @@ SOLVER_FAILURE = "solver_failure"   # a plan's graph-NLP was feasible in every c
 STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE)
 
 
+def algorithm_title(algorithm: str, switches: str | None) -> str:
+    """The name of an algorithm as in the papers' tables: One-way, GNPP_trn, R-LGP_trn."""
+    if algorithm == "oneway":
+        return "One-way"
+    name = "R-LGP" if algorithm == "rlgp" else "GNPP"
+    return f"{name}_{switches}" if switches else name
+
+
 @dataclass
 class Conflict:
     """An infeasible subgraph mapped back to partial states <p_0 ... p_L> (paper Sec. VII)."""
@@ -112,10 +120,7 @@ class Result:
 
     @property
     def algorithm_name(self) -> str:
-        if self.algorithm == "oneway":
-            return "One-way"
-        name = "R-LGP" if self.algorithm == "rlgp" else "GNPP"
-        return f"{name}_{self.switches}" if self.switches else name
+        return algorithm_title(self.algorithm, self.switches)
 
     # ---- output ------------------------------------------------------------------------------
     def to_json(self) -> dict:
