@@ -192,8 +192,8 @@ def _whole_range_failed(comp: GraphNLP, rng: tuple[int, int] | None, checker: "_
     if rng is None or comp.steps is None or rng != comp.steps or rng[1] <= rng[0]:
         return False
     lo, hi = rng
-    return all(checker.memo.get(comp.time_slice(a, b).signature()) is not None
-               and _ok(checker.memo[comp.time_slice(a, b).signature()])
+    # _ok(None) is False: a slice the search never checked does not count as feasible
+    return all(_ok(checker.memo.get(comp.time_slice(a, b).signature()))
                for a, b in ((lo, hi - 1), (lo + 1, hi)))
 
 
