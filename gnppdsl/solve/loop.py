@@ -26,7 +26,7 @@ from __future__ import annotations
 import hashlib
 import re
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
@@ -37,11 +37,11 @@ from gnppdsl.compile.sas import PartialState, SASTask
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
 from gnppdsl.errors import UserError
+from gnppdsl.ir.model import SOLVER_ORDERS as ORDERS
 from gnppdsl.solve.result import (NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats,
                                   Step)
 
 TRAJ = "traj"
-ORDERS = ("full_first", "relaxed_first", "staged")
 # order "staged": a relaxation level is solved before the full graph when it has at most this
 # fraction of the factors of the plan's mode-switch graph (the full graph without trajectories)
 STAGED_FRACTION = 0.5
@@ -71,8 +71,9 @@ class SolveOptions:
     restarts: int | None = None      # extra random starts after an infeasible verdict (None: nlp default)
     nlp: str = "ipopt"               # casadi plugin: ipopt | sqpmethod
     check_tolerance: float | None = None   # independent re-check threshold (default: tolerance)
-    screen_tolerance: float = 1e-4   # gnpp, full_first: skip a relaxation level whose factors all
-                                     # hold this well at the full graph's convergence point (0: off)
+    screen_tolerance: float = 1e-4   # gnpp: skip a relaxation level tried after an infeasible full
+                                     # graph whose factors all hold this well at that graph's
+                                     # convergence point (full_first, staged; 0: off)
     order: str = "full_first"        # gnpp: "full_first" = solve the plan's graph-NLP, run Alg. 1
                                      # only when it is infeasible (Fig. 3, step 3); "relaxed_first"
                                      # = relaxations loose -> tight before the full graph;
@@ -311,7 +312,7 @@ class _Checker:
             modes = g.apply_relaxation({TRAJ}, "modes")
             if modes.n_factors:
                 # the keyframes first: every factor at the mode switches (a relaxation of g),
-                # also when relaxations already gave them values (they may lack collisions);
+                # also when relaxations already gave them values (they may lack collisions).
                 # For the plan's own graph (not a subgraph Alg. 1 checks): one run from the
                 # warm start and its polish, no random restarts. An infeasible verdict here only
                 # starts the conflict search, whose subgraphs are solved with restarts (and a
@@ -832,8 +833,11 @@ class _Run:
 
         Order "full_first" (default, Fig. 3 step 3): solve the full graph-NLP first; only when it
         is infeasible search for a conflict, relaxations loose -> tight. "relaxed_first": the
-        relaxations before the full graph, as Alg. 1 is written. Relaxation levels whose factor
-        set equals the previous level's or the full graph's are skipped (same verdict).
+        relaxations before the full graph, as Alg. 1 is written. "staged": the small relaxation
+        levels, then the full graph, the large levels only to locate a conflict (`staged`).
+        Relaxation levels whose factor set equals an earlier level's or the full graph's are
+        skipped (same verdict); after an infeasible full graph, levels that nearly hold at its
+        convergence point are skipped too (`nearly_holds`: no verdict, so no conflict).
         Each relaxed graph G_r is first checked as a whole (one NLP; by Property 4.5 it is
         feasible iff all its components are), and only an infeasible G_r is searched component
         by component with the double binary search on time and the convergence heuristic
