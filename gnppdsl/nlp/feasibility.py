@@ -37,7 +37,7 @@ import numpy as np
 
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.errors import UserError
-from gnppdsl.nlp.casadi_expr import BodyCompiler, CompiledBody
+from gnppdsl.nlp.casadi_expr import BodyCompiler, CompiledBody, scatter_sum
 from gnppdsl.nlp.geometry_protocol import Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 
@@ -467,14 +467,7 @@ class FeasibilitySolver:
             entries += [(n_in + n_eq + m // 4, a, base + m) for m, a in enumerate(quat_idx)]
             base += len(quat_idx)
         n_g = n_in + n_eq + len(quat_idx) // 4
-        ent = np.array(entries, dtype=np.int64).reshape(-1, 3)
-        cells = sorted({(c, r) for r, c, _ in ent.tolist()})           # column-major order
-        pos = {c: m for m, c in enumerate(cells)}
-        rows_A = [pos[(c, r)] for r, c, _ in ent.tolist()]
-        A = ca.DM(ca.Sparsity.triplet(len(cells), base, rows_A, ent[:, 2].tolist()),
-                  np.ones(len(rows_A)))
-        vals = ca.mtimes(A, ca.vertcat(*[ca.vec(q) for q in parts]))
-        J = ca.MX(ca.Sparsity.triplet(n_g, n_z, [r for _, r in cells], [c for c, _ in cells]), vals)
+        J = _scatter_parts(n_g, n_z, entries, parts)
         return ca.Function("nlp_jac_g", [z, pp], [ca.MX.zeros(n_g, 1), J], ["x", "p"], ["g", "jac_g_x"])
 
     def _hessian_function(self, layout: list, n: int, n_z: int, n_par: int, h_rows: np.ndarray,
@@ -519,15 +512,7 @@ class FeasibilitySolver:
             parts.append(2 * ca.repmat(lam_q.T, 4, 1)[:])
             entries += [(a, a, base + m) for m, a in enumerate(quat_idx)]
             base += len(quat_idx)
-        ent = np.array(entries, dtype=np.int64).reshape(-1, 3)
-        cells = sorted({(b, a) for a, b, _ in ent.tolist()})          # column-major order
-        pos = {c: m for m, c in enumerate(cells)}
-        rows_A = [pos[(b, a)] for a, b, _ in ent.tolist()]
-        A = ca.DM(ca.Sparsity.triplet(len(cells), base, rows_A, ent[:, 2].tolist()),
-                  np.ones(len(rows_A)))
-        vals = ca.mtimes(A, ca.vertcat(*[ca.vec(q) for q in parts]))
-        sp_h = ca.Sparsity.triplet(n_z, n_z, [a for _, a in cells], [b for b, _ in cells])
-        H = ca.MX(sp_h, vals)
+        H = _scatter_parts(n_z, n_z, entries, parts)
         return ca.Function("nlp_hess_l", [z, pp, lam_f, lam_g], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
 
@@ -648,6 +633,15 @@ def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarr
     if solver is None:
         solver = FeasibilitySolver(geometry, SolverOptions(tolerance=tolerance, **options))
     return solver.solve(graph, warm_start=warm_start, seed=seed)
+
+
+def _scatter_parts(n_rows: int, n_cols: int, entries: list, parts: list) -> ca.MX:
+    """The sparse matrix with entry (row, col, k) of `entries` adding element k of the stacked
+    `parts` at (row, col): the Jacobian and Hessian assembly's final scatter, done by
+    `casadi_expr.scatter_sum` (one constant sparse product)."""
+    ent = np.array(entries, dtype=np.int64).reshape(-1, 3)
+    values = ca.vertcat(*[ca.vec(q) for q in parts])
+    return scatter_sum(n_rows, n_cols, ent[:, 0], ent[:, 1], values[ent[:, 2].tolist()])
 
 
 def _mapped_inputs(x: ca.MX, P: ca.MX, cb, k: int, stacked, p0: int) -> tuple[list, ca.MX]:
