@@ -18,7 +18,7 @@ from gnppdsl.ir.resolve_rules import RuleResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
 from gnppdsl.ir.typecheck import OBJ, Checker, Scope
 from gnppdsl.ir.workspace import (DECL_WORDS, PRELUDE, RESERVED_TYPE_NAMES, VALUE_SPACES, ModuleEnv,
-                                  Workspace, merged_decls, qualified_consts)
+                                  Workspace, merged_decls, note_param, qualified_consts)
 from gnppdsl.lang import ast
 from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 
@@ -66,11 +66,9 @@ class DomainResolver:
     def typed_params(self, params: tuple[ast.Param, ...], what: str,
                      allow_untyped: bool = False, allow_union: bool = False) -> tuple[M.TypedParam, ...]:
         out = []
-        seen = set()
+        seen: set[str] = set()
         for p in params:
-            if p.name.value in seen:
-                self.err(p.name.span, f"parameter '{p.name.value}' is declared twice", "duplicate")
-            seen.add(p.name.value)
+            note_param(self.err, seen, p.name)
             if p.name.value in M.BUILTIN_VALUES:
                 self.err(p.name.span, f"'{p.name.value}' is a builtin value and cannot be a parameter name",
                          "reserved")

@@ -67,6 +67,14 @@ class ModuleEnv:
         return out
 
 
+def note_param(err, seen: set[str], name: ast.Name) -> None:
+    """Record one parameter name of a declaration, reporting a repeat (shared by template
+    signatures and typed rule/action parameters, so both say the same thing)."""
+    if name.value in seen:
+        err(name.span, f"parameter '{name.value}' is declared twice", "duplicate")
+    seen.add(name.value)
+
+
 class Workspace:
     """Loads and resolves .pntc files; all diagnostics go to `self.reporter`."""
 
@@ -290,11 +298,9 @@ class Workspace:
 
     def _signature(self, params: tuple[ast.SigParam, ...], types: dict | None) -> tuple[M.Signature, ...]:
         out = []
-        seen = set()
+        seen: set[str] = set()
         for p in params:
-            if p.name.value in seen:
-                self.err(p.name.span, f"parameter '{p.name.value}' is declared twice", "duplicate")
-            seen.add(p.name.value)
+            note_param(self.err, seen, p.name)
             n = p.space.name.value
             if n == "value":
                 out.append(M.Signature(p.name.value, "any", span=p.span))
