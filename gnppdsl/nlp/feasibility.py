@@ -26,6 +26,7 @@ of assembled NLPs per vertex set, and a per-instance compile memo.
 """
 from __future__ import annotations
 
+import math
 import time
 import zlib
 from collections import OrderedDict
@@ -128,9 +129,14 @@ class _Monitor(ca.Callback):
         self.reset(0.0, 0)
         self.construct(name, {})
 
-    def reset(self, stop_below: float, patience: int) -> None:
-        self.stop_below, self.patience = stop_below, patience
+    def reset(self, stop_below: float, patience: int, deadline: float = math.inf) -> None:
+        """`deadline` (time.perf_counter() clock): stop the run at the first iteration after
+        it. Why here and not only ipopt's `max_wall_time`: that option is fixed when the NLP
+        is assembled, and an assembled NLP is cached and solved again later (restarts, the
+        polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly."""
+        self.stop_below, self.patience, self.deadline = stop_below, patience, deadline
         self.best, self.best_z, self.since, self.stalled = np.inf, None, 0, False
+        self.timed_out = False
 
     def get_n_in(self):
         return ca.nlpsol_n_out()
@@ -169,6 +175,9 @@ class _Monitor(ca.Callback):
         worst = max(np.max(r_in, initial=0.0), np.max(r_eq, initial=0.0),
                     np.max(r_q, initial=0.0))
         total = float(r_in.sum() + r_eq.sum() + r_q.sum())   # what the elastic form minimises
+        if time.perf_counter() >= self.deadline:
+            self.timed_out = True
+            return [1]
         if not np.isfinite(total):
             return [0]
         if worst <= self.stop_below:
@@ -255,6 +264,7 @@ class FeasibilitySolver:
         self.options = options or SolverOptions()
         self.compiler = compiler or BodyCompiler(geometry)
         self._nlps: OrderedDict[frozenset, _Assembled] = OrderedDict()   # LRU
+        self.deadline = math.inf        # time.perf_counter() at which ipopt runs stop (_Monitor)
         self._built = 0
         self.solves = 0                 # ipopt runs
         self.solve_time = 0.0
@@ -556,16 +566,18 @@ class FeasibilitySolver:
         z0 = np.concatenate([x0, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
         z0 = np.nan_to_num(z0, nan=1.0, posinf=1e3, neginf=-1e3)
         if a.monitor is not None:
-            a.monitor.reset(0.1 * self.options.tolerance, self.options.stall_iterations)
+            a.monitor.reset(0.1 * self.options.tolerance, self.options.stall_iterations, self.deadline)
         sol = a.solver(x0=z0, p=np.concatenate([x0, a.params, [rho]]), lbx=a.lbx, ubx=a.ubx,
                        lbg=a.lbg, ubg=a.ubg)
         st = a.solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
+        status = str(st.get("return_status", ""))
         if a.monitor is not None and a.monitor.stalled and a.monitor.best_z is not None:
             z = a.monitor.best_z          # the best point seen, not where ipopt wandered to
-        return z[:a.n_x], float(np.sum(z[a.n_x:])), int(st.get("iter_count", 0)), \
-            str(st.get("return_status", ""))
+        if a.monitor is not None and a.monitor.timed_out:
+            status = "Maximum_WallTime_Exceeded"      # the deadline, not a verdict
+        return z[:a.n_x], float(np.sum(z[a.n_x:])), int(st.get("iter_count", 0)), status
 
     def _verdict(self, a: _Assembled, x: np.ndarray) -> tuple[dict, dict[FactorRef, float], float]:
         x = x.copy()

@@ -419,19 +419,15 @@ class _Checker:
                     continue
                 if v not in self.values:
                     return None
-                x = tuple(float(t) for t in np.asarray(self.values[v], float).reshape(-1))
-                frozen[v] = replace(v, lower=x, upper=x)     # equal to v: bounds do not compare
+                frozen[v] = _fixed(v, self.values[v])
             if not frozen or not any(v.waypoints for v in s.variables):
                 continue
-            fixed = GraphNLPView.with_variables(s, frozen)
-            # a solver of its own: assembled NLPs are cached by vertex set, which ignores bounds
-            solver = run.new_solver()
-            solver.options.restarts, solver.options.polish = 0, True
-            solver.options.time_limit = max(0.05, run.remaining())
-            r = solver.solve(fixed, warm_start={**warm, **fixed_values}, seed=run.options.seed)
-            run.nlp_calls += 1
-            if time.perf_counter() >= run.deadline:
-                raise _TimeUp()
+            r = None
+            idle = self.idle_motions(s, i)
+            if idle:
+                r = self.solve_motion(s, frozen, idle, warm, fixed_values)
+            if r is None or not r.feasible:
+                r = self.solve_motion(s, frozen, {}, warm, fixed_values)
             if not r.feasible:
                 run.say(f"  {g.name}: motion {i} not found with fixed keyframes "
                         f"(violation {r.max_violation:.2g}); solving all motions jointly")
@@ -446,6 +442,72 @@ class _Checker:
         if known is not None:
             self.values.update(known.values)
         return known
+
+    def idle_motions(self, s: Any, i: int) -> dict:
+        """The trajectories of phase i whose keyframes at i and i+1 are equal up to IDLE_MOTION
+        (an arm that does not move in this phase), each with the straight line between them as
+        its fixed value.
+
+        Why: with two arms, one usually waits while the other moves, and the waiting arm's
+        20 waypoints carried as many collision rows as the moving one's (Lab 4: half of each
+        phase's distance queries and Hessian blocks for a path whose straight-line start is
+        already its solution)."""
+        idle = {}
+        by = {(v.key, v.step): v for v in self.values if not v.waypoints}
+        for v in s.variables:
+            if not v.waypoints or v.step != i:
+                continue
+            key = keyframe_of(v, s.variables, [x for h in s.graph.neighbors(v) for x in s.graph.neighbors(h)])
+            a, b = by.get((key, i)), by.get((key, i + 1))
+            if a is None or b is None:
+                continue
+            xa = np.asarray(self.values[a], float).reshape(-1)
+            xb = np.asarray(self.values[b], float).reshape(-1)
+            if xa.size == v.point_dim and np.max(np.abs(xa - xb), initial=0.0) <= IDLE_MOTION:
+                # the straight line: its end points are exactly the keyframes, which the
+                # solver moved by ~1e-8 although nothing asked the arm to move
+                idle.update(interpolate_trajectories([v], {a: xa, b: xb}))
+        return idle
+
+    def solve_motion(self, s: Any, frozen: dict, idle: dict, warm: dict, fixed_values: dict) -> Any:
+        """One phase's NLP with its keyframes (`frozen`) and the `idle` trajectories fixed; the
+        factors whose variables are then all fixed are checked once with numpy instead of
+        being carried through every ipopt iteration. None when such a factor is violated
+        (the caller solves the phase again with the idle trajectories free)."""
+        from gnppdsl.nlp.evaluate import max_violation
+        from gnppdsl.nlp.feasibility import FeasibilityResult
+
+        run = self.run
+        fixed = {**frozen, **{v: _fixed(v, x) for v, x in idle.items()}}
+        m = s
+        if idle:
+            const = [ref for ref in s.factor_refs if all(u in fixed for u in s.graph.neighbors(ref))]
+            point = {**{v: self.values[v] for v in frozen}, **idle}
+            t0 = time.perf_counter()
+            try:
+                worst, _ = max_violation([s.factor(ref) for ref in const], point, run.compiled.geometry)
+            except Exception:          # a primitive numpy cannot evaluate: solve it instead
+                worst = np.inf
+            finally:
+                run.stats.reuse_time += time.perf_counter() - t0
+            if not worst <= run.options.tolerance:
+                return None
+            m = s.subgraph(factors=[ref for ref in s.factor_refs if ref not in set(const)],
+                           suffix="{moving}")
+            if m.n_factors == 0:
+                return FeasibilityResult(True, dict(idle), {}, worst, 0.0, 0.0, 0, "idle", 0)
+        # a solver of its own: assembled NLPs are cached by vertex set, which ignores bounds
+        solver = run.new_solver()
+        solver.options.restarts, solver.options.polish = 0, True
+        solver.options.time_limit = max(0.05, run.remaining())
+        r = solver.solve(GraphNLPView.with_variables(m, {v: f for v, f in fixed.items() if v in m}),
+                         warm_start={**warm, **fixed_values, **idle}, seed=run.options.seed)
+        run.nlp_calls += 1
+        if time.perf_counter() >= run.deadline:
+            raise _TimeUp()
+        if r.feasible:
+            r.values.update({v: x for v, x in idle.items() if v not in r.values})
+        return r
 
     def recheck(self, g: Any) -> Any:
         """Second opinion on an infeasible g whose large strict time slices are feasible (see
@@ -1033,6 +1095,19 @@ class _Run:
                                plan=list(plan.names), steps=steps, extras=extras)
         return self.result(SOLVED, f"solved with {len(plan)} actions after {self.stats.plans} plans",
                            plan=list(plan.names), steps=steps, extras=extras)
+
+
+IDLE_MOTION = 1e-3
+"""Largest keyframe change (per coordinate) of a trajectory that `motions_between_keyframes`
+first tries with the straight line fixed (a waiting arm); if that phase fails it is solved
+again with the trajectory free, so this is a speed setting, never a restriction."""
+
+
+def _fixed(v: VarInstance, value: Any) -> VarInstance:
+    """v with lower = upper bound = value: equal to v (bounds do not take part in equality),
+    so it replaces v in a graph-NLP's vertex set for a solve with v held fixed."""
+    x = tuple(float(t) for t in np.asarray(value, float).reshape(-1))
+    return replace(v, lower=x, upper=x)
 
 
 def bound_violation(variables: Iterable[VarInstance], values: dict) -> float:

@@ -256,3 +256,21 @@ def test_a_near_feasible_start_is_polished_before_random_restarts():
     assert r.feasible and r.starts == 1 and r.values[v][0] == pytest.approx(5.0, abs=1e-3)
     late = FeasibilitySolver(options=SolverOptions(restarts=3, polish_below=0.0)).solve(GraphNLP([f]))
     assert late.starts == 4          # without the early polish every restart runs first
+
+
+def test_deadline_stops_a_cached_nlp_at_its_next_iteration():
+    """ipopt's max_wall_time is fixed when an NLP is assembled; a cached NLP solved again later
+    must still stop at the solver's deadline (the iteration monitor checks it), and say so in
+    its status so the loop treats it as a time-out, not a verdict."""
+    vs, fs = discs(3)                    # infeasible: runs until the stall detection
+    g = GraphNLP(fs)
+    s = FeasibilitySolver(None, SolverOptions(restarts=0, early_stop=True, stall_iterations=400,
+                                              time_limit=1e6, polish=False))
+    first = s.solve(g)
+    assert not first.feasible and first.iterations > 5
+    s.deadline = time.perf_counter()     # already passed; the cached NLP keeps time_limit=1e6
+    late = s.solve(g)
+    assert late.iterations <= 1 and "walltime" in late.status.lower()
+    s.deadline = math.inf
+    again = s.solve(g)
+    assert again.iterations == first.iterations and "walltime" not in again.status.lower()

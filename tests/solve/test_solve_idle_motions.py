@@ -1,0 +1,83 @@
+"""Idle motions in the phase-by-phase motion solve (`_Checker.motions_between_keyframes`): a
+trajectory whose keyframes do not change is first held on its straight line, the factors that
+then only read fixed values are checked once with numpy and left out of the phase NLP, and a
+phase where that fails is solved again with the trajectory free. Checked on the toy with two
+blocks (one moves while the other waits) against the independent re-check of the solution."""
+from __future__ import annotations
+
+import numpy as np
+
+from gnppdsl.solve import loop
+from gnppdsl.solve.loop import SolveOptions, solve_compiled
+from solve_checks import check_solution
+
+
+def _toy():
+    from solve_toy import occupied_problem
+
+    return occupied_problem(waypoints=8)
+
+
+def _solve(compiled):
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=6, order="staged"))
+    assert res.solved and res.stats.N == 4, res.message
+    check_solution(compiled, res)
+    return res
+
+
+def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_phase_nlp(monkeypatch):
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+
+    seen_idle, phase_graphs = [], []
+    real_idle = loop._Checker.idle_motions
+    real_solve = FeasibilitySolver.solve
+
+    def spy_idle(self, s, i):
+        idle = real_idle(self, s, i)
+        seen_idle.append((s, idle))
+        return idle
+
+    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0):
+        if "{moving}" in g.name:
+            phase_graphs.append(g)
+        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+
+    monkeypatch.setattr(loop._Checker, "idle_motions", spy_idle)
+    monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
+    compiled = _toy()
+    _solve(compiled)
+    assert any(idle for _, idle in seen_idle), "the toy has a block that waits in some phase"
+    for s, idle in seen_idle:
+        for v, x in idle.items():
+            pts = x.reshape(v.waypoints, v.point_dim)
+            # a straight line between keyframes that differ by at most IDLE_MOTION
+            assert np.allclose(np.diff(pts, 2, axis=0), 0.0, atol=1e-12)
+            assert np.max(np.abs(pts[-1] - pts[0])) <= loop.IDLE_MOTION
+    # the phase NLPs never carry a factor whose variables are all fixed
+    assert phase_graphs
+    for g in phase_graphs:
+        for ref in g.factor_refs:
+            assert any(u.lower is None or u.lower != u.upper for u in g.graph.neighbors(ref))
+
+
+def test_a_held_trajectory_that_breaks_a_factor_is_solved_again_free(monkeypatch):
+    """idle_motions is forced to propose a wrong line (shifted off its keyframes): the constant
+    factors are violated, so every such phase is solved again with the trajectory free, and the
+    answer is the same valid solution."""
+    real_idle = loop._Checker.idle_motions
+    retried = []
+    real_motion = loop._Checker.solve_motion
+
+    def shifted(self, s, i):
+        return {v: x + 0.5 for v, x in real_idle(self, s, i).items()}
+
+    def spy_motion(self, s, frozen, idle, warm, fixed_values):
+        r = real_motion(self, s, frozen, idle, warm, fixed_values)
+        retried.append((bool(idle), r is None))
+        return r
+
+    monkeypatch.setattr(loop._Checker, "idle_motions", shifted)
+    monkeypatch.setattr(loop._Checker, "solve_motion", spy_motion)
+    _solve(_toy())
+    assert (True, True) in retried                    # the held try was refused by numpy
+    assert (False, False) in retried                  # and the phase solved free
