@@ -6,11 +6,29 @@ blocks (one moves while the other waits) against the independent re-check of the
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from gnppdsl.solve import loop
 from gnppdsl.solve.loop import SolveOptions, solve_compiled
 from solve_checks import check_solution
 
+
+@pytest.fixture
+def zigzag_starts(monkeypatch):
+    """Straight-line starts of the toy's paths already satisfy their phases (no phase NLP
+    would run): the interpolation is replaced by a zigzag that breaks the step bound, so the
+    phases are solved by their NLPs."""
+    real = loop.interpolate_trajectories
+
+    def zigzag(trajs, values, neighbours=lambda v: ()):
+        out = real(trajs, values, neighbours)
+        for v, x in out.items():
+            pts = x.reshape(v.waypoints, v.point_dim).copy()
+            pts[1:-1] += 0.4 * (-1.0) ** np.arange(1, v.waypoints - 1)[:, None]
+            out[v] = pts.reshape(-1)
+        return out
+
+    monkeypatch.setattr(loop, "interpolate_trajectories", zigzag)
 
 def _toy():
     from solve_toy import occupied_problem
@@ -25,7 +43,7 @@ def _solve(compiled):
     return res
 
 
-def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_phase_nlp(monkeypatch):
+def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_phase_nlp(monkeypatch, zigzag_starts):
     from gnppdsl.nlp.feasibility import FeasibilitySolver
 
     seen_idle, phase_graphs = [], []
@@ -60,7 +78,7 @@ def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_
             assert any(u.lower is None or u.lower != u.upper for u in g.graph.neighbors(ref))
 
 
-def test_a_held_trajectory_that_breaks_a_factor_is_solved_again_free(monkeypatch):
+def test_a_held_trajectory_that_breaks_a_factor_is_solved_again_free(monkeypatch, zigzag_starts):
     """idle_motions is forced to propose a wrong line (shifted off its keyframes): the constant
     factors are violated, so every such phase is solved again with the trajectory free, and the
     answer is the same valid solution."""
@@ -81,3 +99,23 @@ def test_a_held_trajectory_that_breaks_a_factor_is_solved_again_free(monkeypatch
     _solve(_toy())
     assert (True, True) in retried                    # the held try was refused by numpy
     assert (False, False) in retried                  # and the phase solved free
+
+
+def test_a_phase_whose_straight_line_start_satisfies_it_needs_no_nlp(monkeypatch):
+    """The toy's straight-line paths already keep the step bound: every phase is accepted by
+    the numpy check of its start, no phase NLP is built, and the solution (made of those
+    starts) passes the independent re-check."""
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+
+    real_solve = FeasibilitySolver.solve
+    phase_nlps = []
+
+    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0):
+        if "{motion" in g.name:
+            phase_nlps.append(g.name)
+        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+
+    monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
+    res = _solve(_toy())
+    assert not phase_nlps
+    assert res.stats.reused_solutions > 0

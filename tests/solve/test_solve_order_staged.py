@@ -7,6 +7,7 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gnppdsl.errors import UserError
@@ -93,6 +94,24 @@ def test_unknown_order_option_is_a_user_error():
 
 
 # ---------------------------------------------------------------- motions between fixed keyframes
+
+@pytest.fixture
+def zigzag_starts(monkeypatch):
+    """Straight-line starts of the toy's paths already satisfy their phases (no phase NLP
+    would run): the interpolation is replaced by a zigzag that breaks the step bound, so the
+    phases are solved by their NLPs."""
+    real = loop.interpolate_trajectories
+
+    def zigzag(trajs, values, neighbours=lambda v: ()):
+        out = real(trajs, values, neighbours)
+        for v, x in out.items():
+            pts = x.reshape(v.waypoints, v.point_dim).copy()
+            pts[1:-1] += 0.4 * (-1.0) ** np.arange(1, v.waypoints - 1)[:, None]
+            out[v] = pts.reshape(-1)
+        return out
+
+    monkeypatch.setattr(loop, "interpolate_trajectories", zigzag)
+
 def _toy():
     from solve_toy import occupied_problem
 
@@ -108,7 +127,7 @@ def _check_toy(compiled, res):
 
 
 @pytest.mark.parametrize("order", ["full_first", "staged"])
-def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, order):
+def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, order, zigzag_starts):
     from gnppdsl.nlp.feasibility import FeasibilitySolver
 
     real_solve = FeasibilitySolver.solve
@@ -139,7 +158,7 @@ def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, 
     assert fixed_bounds and results and results[-1]   # the solution came from the phases
 
 
-def test_a_failed_phase_falls_back_to_the_joint_solve_and_is_no_verdict(monkeypatch):
+def test_a_failed_phase_falls_back_to_the_joint_solve_and_is_no_verdict(monkeypatch, zigzag_starts):
     """Every phase NLP (keyframes fixed) is forced to fail: the loop solves all motions jointly
     and finds the same answer, without a conflict from the failed phases."""
     from gnppdsl.nlp.feasibility import FeasibilityResult, FeasibilitySolver
