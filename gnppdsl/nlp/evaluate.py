@@ -8,16 +8,30 @@ one is unlikely to be repeated in the other. Geometry goes through the numeric m
 injected `Geometry`.
 
 Violation of a row: |h| for `==`, max(h, 0) for `<=`/`>=` (after moving everything to h <= 0).
+
+Why compiled: the solve loop re-evaluates every factor of a graph at one point, many graphs per
+point (`known_solution`, relaxation screening, the final re-check), and a Lab body is an unrolled
+tree of thousands of nodes in which the same subexpression (`world(b1)`, the fk of one waypoint)
+recurs in many rows and many factors. So each factor is compiled once into steps over a table of
+hash-consed nodes (a node is keyed by its builtin, its static arguments and its children's node
+ids; a leaf is a `VarInstance`): constant subtrees are folded when compiled, and one
+`max_violation` call evaluates every distinct node once, whichever factors share it. The steps call
+the same numeric kernels as the tree walk (`_reference_rows`, kept for the tests), in the same
+order per node, so the numbers are the same bit for bit. A factor also remembers its rows at its
+last few inputs (keyed by the exact bytes of its variables' values and the geometry object):
+a pure function, asked again for the same point by the next subgraph.
 """
 from __future__ import annotations
 
+import gc
 import math
-from typing import Any, Iterable, Mapping
+import weakref
+from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.ir.expr import Call, Index, Num, Obj, Slot, Vec
+from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Vec
 from gnppdsl.nlp.geometry_protocol import Body, Geometry
 
 
@@ -228,9 +242,15 @@ EVALUATED = frozenset(_NUMERIC) | {"pow", "waypoint", "axis_se3", "quat_axis", "
                                    "sdist2", "link"}
 
 
-def constraint_rows(factor: FactorInstance, values: Mapping[VarInstance, Any],
+
+# ---------------------------------------------------------------------------------------------
+# the reference: a direct walk of the body tree (what the compiled steps must reproduce)
+# ---------------------------------------------------------------------------------------------
+def _reference_rows(factor: FactorInstance, values: Mapping[VarInstance, Any],
                     geometry: Geometry | None = None) -> list[tuple[str, float]]:
-    """[(kind, h)] for every row of the factor, kind "eq" (h = 0) or "ineq" (h <= 0)."""
+    """`constraint_rows` by walking the body tree for every row (no compilation, no sharing).
+
+    Kept so that tests can compare the compiled evaluator against the plain interpretation."""
     it = _Interp(factor, values, geometry)
     rows: list[tuple[str, float]] = []
     for c in factor.body:
@@ -241,24 +261,435 @@ def constraint_rows(factor: FactorInstance, values: Mapping[VarInstance, Any],
     return rows
 
 
+# ---------------------------------------------------------------------------------------------
+# compiled evaluation
+# ---------------------------------------------------------------------------------------------
+_F64 = np.dtype(float)
+
+
+def _vec(r: Any) -> np.ndarray:
+    """The value of a node as a flat float vector (what `_Interp.ev` makes of a call's result)."""
+    if r.__class__ is np.ndarray and r.ndim == 1 and r.dtype == _F64:
+        return r
+    if r.__class__ is float:
+        return np.array([r])
+    return np.atleast_1d(np.asarray(r, float)).reshape(-1)
+
+
+_GEO = 0
+"""Node id of the injected geometry in every table: `m[_GEO]` is the `Geometry` of the call."""
+
+
+class _Table:
+    """Hash-consed nodes: a node is keyed by `prefix + kids` (its builtin, static arguments and
+    children's ids), so an expression that recurs is one node.
+
+    Node kinds: leaf (`prefix` names it; its value is supplied per call), constant (folded when
+    made: every child constant), step (`op[id](*values of kids[id])`, run once per call).
+    Node 0 is the geometry leaf. Only ints, tuples and functions made once per builtin are
+    stored per node: nothing for the garbage collector to walk again and again."""
+
+    def __init__(self) -> None:
+        self.ids: dict[tuple, int] = {}
+        self.prefix: list[tuple] = [("geometry",)]
+        self.op: list[Callable | None] = [None]          # id -> function, None for leaves
+        self.kids: list[tuple[int, ...]] = [()]          # id -> children
+        self.const: dict[int, np.ndarray] = {}           # id -> folded value
+
+    def _new(self, key: tuple, prefix: tuple, op: Callable | None, kids: tuple) -> int:
+        nid = self.ids[key] = len(self.op)
+        self.prefix.append(prefix)
+        self.op.append(op)
+        self.kids.append(kids)
+        return nid
+
+    def leaf(self, prefix: tuple) -> int:
+        nid = self.ids.get(prefix)
+        return nid if nid is not None else self._new(prefix, prefix, None, ())
+
+    def constant(self, value: np.ndarray) -> int:
+        key = ("const", value.tobytes())
+        nid = self.ids.get(key)
+        if nid is None:
+            nid = self._new(key, key, None, ())
+            self.const[nid] = value
+        return nid
+
+    def node(self, prefix: tuple, op: Callable, kids: tuple[int, ...]) -> int:
+        """The node `_vec(op(*values of kids))`; folded now if every kid is constant."""
+        key = prefix + kids
+        nid = self.ids.get(key)
+        if nid is not None:
+            return nid
+        const = self.const
+        if all(k in const for k in kids):
+            value = _vec(op(*[const[k] for k in kids]))
+            nid = self._new(key, prefix, op, kids)
+            const[nid] = value
+            return nid
+        return self._new(key, prefix, op, kids)
+
+    def is_step(self, nid: int) -> bool:
+        return self.op[nid] is not None and nid not in self.const
+
+
+def _slot_signature(v: VarInstance) -> tuple[int, int]:
+    """What compiling a body needs to know about a slot's variable."""
+    return v.waypoints, v.dim
+
+
+class _Compiler:
+    """Turns a body into nodes of a table whose leaves are the slots ("slot", j)."""
+
+    def __init__(self, body: tuple[Constraint, ...], sigs: tuple[tuple[int, int], ...],
+                 table: _Table):
+        self.body, self.sigs, self.t = body, sigs, table
+        self.leaves = [table.leaf(("slot", j)) for j in range(len(sigs))]
+        self.seen: dict[int, int] = {}       # id(expr) -> node: a shared subtree compiles once
+
+    def slot(self, e: Any) -> int:
+        if not 0 <= e.index < len(self.sigs):
+            raise EvaluationError(f"slot {e.index} of a factor with {len(self.sigs)} variables")
+        return e.index
+
+    def waypoint(self, e: Any, k: int) -> int:
+        if not isinstance(e, Slot) or not self.sigs[self.slot(e)][0]:
+            raise EvaluationError("waypoint of a non-trajectory")
+        n, dim = self.sigs[e.index]
+        d = dim // n
+        return self.t.node(("waypoint", k, n, d), lambda x: x.reshape(n, d)[k],
+                           (self.leaves[e.index],))
+
+    def body_of(self, e: Any) -> Body:
+        if isinstance(e, Obj):
+            return Body(e.name)
+        if isinstance(e, Call) and e.fn == "link":
+            return Body(e.args[0].name, link=e.args[1].value)
+        raise EvaluationError(f"not a body: {e!r}")
+
+    def num(self, value: float) -> int:
+        return self.t.constant(np.array([value]))
+
+    def expr(self, e: Any) -> int:
+        nid = self.seen.get(id(e))
+        if nid is not None:
+            return nid
+        cls = e.__class__
+        if cls is Call:
+            nid = self.call(e)
+        elif cls is Num:
+            nid = self.num(float(e.value))
+        elif cls is Vec and e.items and all(i.__class__ is Num for i in e.items):
+            nid = self.t.constant(np.array([float(i.value) for i in e.items]))
+        else:
+            nid = self._expr(e)
+        self.seen[id(e)] = nid
+        return nid
+
+    def _expr(self, e: Any) -> int:
+        t = self.t
+        if isinstance(e, Num):
+            return self.num(float(e.value))
+        if isinstance(e, Slot):
+            return self.leaves[self.slot(e)]
+        if isinstance(e, Vec):
+            kids = tuple([self.expr(i) for i in e.items])
+            return t.node(("vec",), lambda *xs: np.concatenate(xs), kids)
+        if isinstance(e, Index):
+            i = int(_const(e.index))
+            if isinstance(e.base, Slot) and self.sigs[self.slot(e.base)][0] and e.stop is None:
+                return self.waypoint(e.base, i)
+            b = self.expr(e.base)
+            if e.stop is None:
+                return t.node(("index", i), lambda x: x[[i]], (b,))
+            stop = int(_const(e.stop))
+            return t.node(("slice", i, stop), lambda x: x[i:stop], (b,))
+        if isinstance(e, Call):
+            return self.call(e)
+        raise EvaluationError(f"cannot evaluate {e!r}")
+
+    def call(self, e: Call) -> int:
+        t, fn, A = self.t, e.fn, e.args
+        if fn == "pow":
+            p = _const(A[1])
+            return t.node(("pow", p), lambda x: x ** p, (self.expr(A[0]),))
+        if fn == "waypoint":
+            return self.waypoint(A[0], int(_const(A[1])))
+        if fn == "axis_se3":
+            j = int(_const(A[1]))
+            return t.node((fn, j), lambda x: _rot(x[3:7])[:, j], (self.expr(A[0]),))
+        if fn == "quat_axis":
+            j = int(_const(A[1]))
+            return t.node((fn, j), lambda x: _rot(x)[:, j], (self.expr(A[0]),))
+        if fn == "fk":
+            robot, frame = A[0].name, A[2].value
+            return t.node(("fk", robot, frame), lambda g, q, b: g.fk_numeric(robot, q, frame, b),
+                          (_GEO, self.expr(A[1]), self.expr(A[3])))
+        if fn == "sdist":
+            ba, bb = self.body_of(A[0]), self.body_of(A[2])
+            return t.node(("sdist", ba.name, ba.link, bb.name, bb.link),
+                          lambda g, a, b: g.sdist_numeric(ba, a, bb, b),
+                          (_GEO, self.expr(A[1]), self.expr(A[3])))
+        if fn == "sdist2":
+            ba, bb = self.body_of(A[0]), self.body_of(A[2])
+            return t.node(("sdist2", ba.name, ba.link, bb.name, bb.link),
+                          lambda g, a, b: g.sdist2_numeric(ba, a, bb, b),
+                          (_GEO, self.expr(A[1]), self.expr(A[3])))
+        kernel = _NUMERIC.get(fn)
+        if kernel is None:
+            raise EvaluationError(f"cannot evaluate the primitive {fn!r}")
+        return t.node((fn,), kernel, tuple([self.expr(a) for a in A]))
+
+    def constraint(self, c: Constraint) -> tuple[bool, int]:
+        lhs, rhs = self.expr(c.lhs), self.expr(c.rhs)
+        kids = (lhs, rhs) if c.op != ">=" else (rhs, lhs)
+        return c.op == "==", self.t.node(("sub",), _NUMERIC["sub"], kids)
+
+
+class _Template:
+    """A body compiled once for every factor with that body and those slot signatures: its
+    nodes in a small table (leaves: the slots), in an order where children come first."""
+
+    __slots__ = ("table", "order", "rows")
+
+    def __init__(self, body: tuple[Constraint, ...], sigs: tuple[tuple[int, int], ...]):
+        self.table = t = _Table()
+        c = _Compiler(body, sigs, t)
+        self.rows = [c.constraint(con) for con in body]
+        order: list[int] = []
+        done: set[int] = set()
+        for _, root in self.rows:           # post-order from the rows: only needed nodes
+            stack = [(root, False)]
+            while stack:
+                nid, expanded = stack.pop()
+                if nid in done:
+                    continue
+                if expanded or not t.is_step(nid):
+                    done.add(nid)
+                    order.append(nid)
+                    continue
+                stack.append((nid, True))
+                stack.extend((k, False) for k in t.kids[nid] if k not in done)
+        self.order = order
+
+
+class _Program:
+    """One factor instance: its variables' leaves in the shared table, the constants and steps
+    it needs (children before parents), its rows, and its rows at its last few inputs."""
+
+    __slots__ = ("vars", "consts", "steps", "rows", "recent", "table")
+
+    def __init__(self, template: _Template, factor: FactorInstance, table: _Table):
+        loc = template.table
+        g: dict[int, int] = {_GEO: _GEO}
+        leaves = [table.leaf(("v", v)) for v in factor.variables]
+        steps: list[int] = []
+        consts: list[int] = []
+        placed: set[int] = set()
+        for i in template.order:
+            if i == _GEO:
+                continue
+            if i in loc.const:
+                nid = g[i] = table.constant(loc.const[i])
+                consts.append(nid)
+            elif loc.op[i] is None:
+                g[i] = leaves[loc.prefix[i][1]]
+            else:
+                nid = g[i] = table.node(loc.prefix[i], loc.op[i], tuple([g[k] for k in loc.kids[i]]))
+                if nid not in placed:
+                    placed.add(nid)
+                    steps.append(nid)
+        self.vars = list(zip(leaves, factor.variables))
+        self.consts = tuple(consts)
+        self.steps = tuple(steps)
+        self.rows = tuple((eq, g[h]) for eq, h in template.rows)
+        self.table = table
+        self.recent: dict[tuple, list[np.ndarray]] = {}
+
+
+_TABLE = _Table()
+_MAX_NODES = 400_000
+"""Above this many nodes the shared table is emptied (with every compiled factor) before a call."""
+
+_TEMPLATES: dict[tuple, _Template] = {}
+_MAX_TEMPLATES = 5_000
+
+
+def _template(factor: FactorInstance) -> _Template:
+    """The compiled body of a factor, shared by every factor with an equal body and slots."""
+    key = (factor.body, tuple([_slot_signature(v) for v in factor.variables]))
+    tpl = _TEMPLATES.get(key)
+    if tpl is None:
+        tpl = _TEMPLATES[key] = _Template(*key)
+    return tpl
+
+
+_RECENT = 4
+"""Inputs remembered per factor (the checker asks several subgraphs about one point)."""
+
+
+_PROGRAMS: dict[int, tuple[weakref.ref, _Program]] = {}
+
+
+def _program(factor: FactorInstance) -> _Program:
+    """The compiled form of a factor instance, cached while the instance lives."""
+    key = id(factor)
+    hit = _PROGRAMS.get(key)
+    if hit is not None and hit[0]() is factor and hit[1].table is _TABLE:
+        return hit[1]
+    paused = gc.isenabled()
+    if paused:          # compiling allocates many small objects that all stay alive: a
+        gc.disable()    # collection pass would find nothing, but walk every object in the heap
+    try:
+        prog = _Program(_template(factor), factor, _TABLE)
+    finally:
+        if paused:
+            gc.enable()
+    try:
+        ref = weakref.ref(factor, lambda r, k=key: _forget(k, r))
+    except TypeError:                     # not weak-referenceable: compile on every call
+        return prog
+    _PROGRAMS[key] = (ref, prog)
+    return prog
+
+
+def _forget(key: int, ref: weakref.ref) -> None:
+    hit = _PROGRAMS.get(key)
+    if hit is not None and hit[0] is ref:
+        del _PROGRAMS[key]
+
+
+_GEOMETRIES: dict[int, tuple[weakref.ref, int]] = {}
+_TOKENS = iter(range(1, 1 << 62))
+
+
+def _geometry_token(geometry: Any) -> int | None:
+    """A number naming this geometry object while it lives (None: do not remember results)."""
+    if geometry is None:
+        return 0
+    key = id(geometry)
+    hit = _GEOMETRIES.get(key)
+    if hit is not None and hit[0]() is geometry:
+        return hit[1]
+
+    def forget(ref: weakref.ref, key: int = key) -> None:
+        if _GEOMETRIES.get(key, (None,))[0] is ref:
+            del _GEOMETRIES[key]
+    try:
+        ref = weakref.ref(geometry, forget)
+    except TypeError:
+        return None
+    token = next(_TOKENS)
+    _GEOMETRIES[key] = (ref, token)
+    return token
+
+
+def _start_call(geometry: Any) -> tuple[dict, int | None]:
+    """The memo of one public call (holding the geometry) and the geometry's token."""
+    global _TABLE
+    if len(_TABLE.op) > _MAX_NODES:      # bound the memory; only between calls
+        _TABLE = _Table()
+        _PROGRAMS.clear()
+    if len(_TEMPLATES) > _MAX_TEMPLATES:
+        _TEMPLATES.clear()
+    return {_GEO: geometry}, _geometry_token(geometry)
+
+
+_ERRORS = (ValueError, IndexError, TypeError, KeyError, AttributeError, ZeroDivisionError)
+
+
+def _values_of_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: dict,
+                    token: int | None) -> tuple[_Program, list[np.ndarray]]:
+    """(program, h of every constraint) of a factor; `m` is the memo of the current call."""
+    try:
+        prog = _program(factor)
+        key: list = [token]
+        for nid, var in prog.vars:
+            x = m.get(nid)
+            if x is None:
+                try:
+                    raw = values[var]
+                except KeyError:
+                    raise EvaluationError(f"no value for variable {var}") from None
+                x = m[nid] = np.asarray(raw, float).reshape(-1)
+            key.append(x.tobytes())
+        k = tuple(key)
+        if token is not None:
+            hs = prog.recent.get(k)
+            if hs is not None:
+                return prog, hs
+        const = prog.table.const
+        for nid in prog.consts:
+            if nid not in m:
+                m[nid] = const[nid]
+        ops, args = prog.table.op, prog.table.kids
+        for nid in prog.steps:
+            if nid not in m:
+                ks = args[nid]
+                if len(ks) == 2:
+                    m[nid] = _vec(ops[nid](m[ks[0]], m[ks[1]]))
+                elif len(ks) == 1:
+                    m[nid] = _vec(ops[nid](m[ks[0]]))
+                else:
+                    m[nid] = _vec(ops[nid](*[m[k] for k in ks]))
+        hs = [m[h] for _, h in prog.rows]
+    except EvaluationError:
+        raise
+    except _ERRORS as err:
+        raise EvaluationError(f"{getattr(factor, 'label', factor)}: {type(err).__name__}: {err}") \
+            from err
+    if token is not None:
+        if len(prog.recent) >= _RECENT:
+            del prog.recent[next(iter(prog.recent))]     # oldest first
+        prog.recent[k] = hs
+    return prog, hs
+
+
+def _worst(prog: _Program, hs: list[np.ndarray]) -> float:
+    """Largest row violation (|h| for equalities, max(h, 0) otherwise); NaN anywhere -> inf."""
+    worst = 0.0
+    for (eq, _), h in zip(prog.rows, hs):
+        if not h.size:
+            continue
+        v = float(np.abs(h).max() if eq else h.max())
+        if v != v:
+            return math.inf
+        if v > worst:
+            worst = v
+    return worst
+
+
+# ---------------------------------------------------------------------------------------------
+# public functions
+# ---------------------------------------------------------------------------------------------
+def constraint_rows(factor: FactorInstance, values: Mapping[VarInstance, Any],
+                    geometry: Geometry | None = None) -> list[tuple[str, float]]:
+    """[(kind, h)] for every row of the factor, kind "eq" (h = 0) or "ineq" (h <= 0)."""
+    m, token = _start_call(geometry)
+    prog, hs = _values_of_rows(factor, values, m, token)
+    rows: list[tuple[str, float]] = []
+    for (eq, _), h in zip(prog.rows, hs):
+        kind = "eq" if eq else "ineq"
+        rows += [(kind, v) for v in h.tolist()]
+    return rows
+
+
 def factor_violation(factor: FactorInstance, values: Mapping[VarInstance, Any],
                      geometry: Geometry | None = None) -> float:
     """Largest violation over the factor's rows (0 when satisfied, NaN counts as infinite)."""
-    worst = 0.0
-    for kind, h in constraint_rows(factor, values, geometry):
-        v = abs(h) if kind == "eq" else max(h, 0.0)
-        if math.isnan(v):
-            return math.inf
-        worst = max(worst, v)
-    return worst
+    m, token = _start_call(geometry)
+    return _worst(*_values_of_rows(factor, values, m, token))
 
 
 def max_violation(factors: Iterable[FactorInstance], values: Mapping[VarInstance, Any],
                   geometry: Geometry | None = None) -> tuple[float, FactorInstance | None]:
-    """(largest violation over all factors, the factor attaining it; None if no factor)."""
+    """(largest violation over all factors, the factor attaining it; None if no factor).
+
+    One memo for the whole call: a node shared by several factors is evaluated once."""
+    m, token = _start_call(geometry)
     best, arg = 0.0, None
     for f in factors:
-        v = factor_violation(f, values, geometry)
+        v = _worst(*_values_of_rows(f, values, m, token))
         if arg is None or v > best:
             best, arg = v, f
     return best, arg
