@@ -1,8 +1,8 @@
 """An independent numpy interpreter of resolved (stage-2) bodies, to re-check solutions.
 
 Why a second implementation: a solution is only trusted if the constraints hold when evaluated
-by code that shares nothing with the solver path (`casadi_expr` + ipopt). This module walks the
-body tree directly, keeps every numeric constant in place (no lifting), and implements rotations
+by code that shares nothing with the solver path (`casadi_expr` + ipopt). This module interprets
+the body tree itself, keeps every numeric constant in place (no lifting), and implements rotations
 through explicit rotation matrices and angles (casadi_expr uses quaternion algebra), so a bug in
 one is unlikely to be repeated in the other. Geometry goes through the numeric methods of the
 injected `Geometry`.
@@ -19,7 +19,8 @@ ids; a leaf is a `VarInstance`): constant subtrees are folded when compiled, and
 the same numeric kernels as the tree walk (`_reference_rows`, kept for the tests), in the same
 order per node, so the numbers are the same bit for bit. A factor also remembers its rows at its
 last few inputs (keyed by the exact bytes of its variables' values and the geometry object):
-a pure function, asked again for the same point by the next subgraph.
+a pure function, asked again for the same point by the next subgraph. Whatever a body cannot
+evaluate (an unknown primitive, sizes that do not fit, a missing value) raises `EvaluationError`.
 """
 from __future__ import annotations
 
@@ -286,8 +287,9 @@ class _Table:
 
     Node kinds: leaf (`prefix` names it; its value is supplied per call), constant (folded when
     made: every child constant), step (`op[id](*values of kids[id])`, run once per call).
-    Node 0 is the geometry leaf. Only ints, tuples and functions made once per builtin are
-    stored per node: nothing for the garbage collector to walk again and again."""
+    Node 0 is the geometry leaf. A node of the shared table holds its key, a tuple of child ids
+    and a function made when its body's template was compiled (no closure per node), so a large
+    table gives the garbage collector little to walk."""
 
     def __init__(self) -> None:
         self.ids: dict[tuple, int] = {}
@@ -477,7 +479,7 @@ class _Program:
     """One factor instance: its variables' leaves in the shared table, the constants and steps
     it needs (children before parents), its rows, and its rows at its last few inputs."""
 
-    __slots__ = ("vars", "consts", "steps", "rows", "recent", "table")
+    __slots__ = ("vars", "consts", "steps", "rows", "eq_at", "ineq_at", "recent", "table")
 
     def __init__(self, template: _Template, factor: FactorInstance, table: _Table):
         loc = template.table
@@ -503,16 +505,18 @@ class _Program:
         self.consts = tuple(consts)
         self.steps = tuple(steps)
         self.rows = tuple((eq, g[h]) for eq, h in template.rows)
+        self.eq_at = tuple(i for i, (eq, _) in enumerate(self.rows) if eq)
+        self.ineq_at = tuple(i for i, (eq, _) in enumerate(self.rows) if not eq)
         self.table = table
         self.recent: dict[tuple, list[np.ndarray]] = {}
 
 
 _TABLE = _Table()
-_MAX_NODES = 400_000
+_MAX_NODES = 200_000
 """Above this many nodes the shared table is emptied (with every compiled factor) before a call."""
 
 _TEMPLATES: dict[tuple, _Template] = {}
-_MAX_TEMPLATES = 5_000
+_MAX_TEMPLATES = 2_000
 
 
 def _template(factor: FactorInstance) -> _Template:
@@ -648,7 +652,10 @@ def _values_of_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m
 def _worst(prog: _Program, hs: list[np.ndarray]) -> float:
     """Largest row violation (|h| for equalities, max(h, 0) otherwise); NaN anywhere -> inf."""
     worst = 0.0
-    for (eq, _), h in zip(prog.rows, hs):
+    for at, eq in ((prog.eq_at, True), (prog.ineq_at, False)):
+        if not at:
+            continue
+        h = hs[at[0]] if len(at) == 1 else np.concatenate([hs[i] for i in at])
         if not h.size:
             continue
         v = float(np.abs(h).max() if eq else h.max())
