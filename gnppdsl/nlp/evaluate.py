@@ -515,16 +515,24 @@ _TABLE = _Table()
 _MAX_NODES = 200_000
 """Above this many nodes the shared table is emptied (with every compiled factor) before a call."""
 
-_TEMPLATES: dict[tuple, _Template] = {}
+_BODIES: dict[tuple, tuple[tuple, _Template]] = {}
+"""(id(body), slot signatures) -> (body, template). The factory hands the same body object to
+the instances of a rule at every step (time invariance), so a body is compiled once per object.
+By identity, not by equality: equal bodies would share one compiled form even where they differ
+in the sign of a zero constant (Num(0.0) == Num(-0.0)), and hashing a whole tree costs about as
+much as compiling it. The body is held, so its id stays its own."""
 _MAX_TEMPLATES = 2_000
 
 
 def _template(factor: FactorInstance) -> _Template:
-    """The compiled body of a factor, shared by every factor with an equal body and slots."""
-    key = (factor.body, tuple([_slot_signature(v) for v in factor.variables]))
-    tpl = _TEMPLATES.get(key)
-    if tpl is None:
-        tpl = _TEMPLATES[key] = _Template(*key)
+    """The compiled body of a factor, shared by every factor with the same body object and slot
+    signatures."""
+    body, sigs = factor.body, tuple([_slot_signature(v) for v in factor.variables])
+    hit = _BODIES.get((id(body), sigs))
+    if hit is not None and hit[0] is body:
+        return hit[1]
+    tpl = _Template(body, sigs)
+    _BODIES[(id(body), sigs)] = (body, tpl)
     return tpl
 
 
@@ -594,8 +602,8 @@ def _start_call(geometry: Any) -> tuple[dict, int | None]:
     if len(_TABLE.op) > _MAX_NODES:      # bound the memory; only between calls
         _TABLE = _Table()
         _PROGRAMS.clear()
-    if len(_TEMPLATES) > _MAX_TEMPLATES:
-        _TEMPLATES.clear()
+    if len(_BODIES) > _MAX_TEMPLATES:
+        _BODIES.clear()
     return {_GEO: geometry}, _geometry_token(geometry)
 
 
