@@ -235,3 +235,18 @@ def test_the_table_is_rebuilt_when_it_grows_too_large(monkeypatch):
     table = evaluate._TABLE
     assert max_violation(factors, x, c.geometry) == first
     assert evaluate._TABLE is not table
+
+
+def test_bodies_equal_up_to_the_sign_of_a_zero_keep_their_own_constants():
+    """Num(0.0) == Num(-0.0), but atan2(+-0, -1) = +-pi: each body object is compiled as is."""
+    v = VarInstance("x", (), 0, "R", 1)
+
+    def body(zero):
+        return [Constraint(Call("atan2", (Num(zero), Slot(0))), "<=", Num(0.0))]
+
+    pos, neg = _factor(body(0.0), [v]), _factor(body(-0.0), [v])
+    assert pos.body == neg.body                                   # equal as IR
+    x = {v: np.array([-1.0])}
+    assert constraint_rows(pos, x) == _reference_rows(pos, x) == [("ineq", math.pi)]
+    assert constraint_rows(neg, x) == _reference_rows(neg, x) == [("ineq", -math.pi)]
+    assert max_violation([neg, pos], x) == (math.pi, pos)
