@@ -36,6 +36,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="gnpp: solve the full graph-NLP first and search for a conflict only when it "
                              "fails (full_first, default), relaxations first (relaxed_first), or the small "
                              "relaxations, then the full graph (staged)")
+    parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
+                        help="large derivative kernels as compiled C, cached on disk (default: the "
+                             "problems' solver setting `jit`, else off)")
     parser.add_argument("--csv", default=None, metavar="FILE", help="write one row per run")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -174,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
                 options = SolveOptions.from_settings(
                     compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
                     time_limit=args.time_limit, seed=seed, max_horizon=args.max_horizon,
-                    order=args.order,
+                    order=args.order, jit=args.jit,
                 )
                 try:
                     res = solve_compiled(compiled, options)

@@ -28,6 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="gnpp/rlgp: solve the full graph-NLP first and search for a conflict only "
                              "when it fails (full_first, default), relaxations first (relaxed_first), or the "
                              "small relaxations, then the full graph (staged)")
+    parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
+                        help="run the large derivative kernels as compiled C, cached on disk "
+                             "(default: the problem's solver setting `jit`, else off)")
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
     parser.add_argument("--seed", type=int, default=None, help="random seed of the NLP starts")
     parser.add_argument("--db", default=None, metavar="PATH",
@@ -61,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         compiled.problem.settings,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
-        order=args.order,
+        order=args.order, jit=args.jit,
     )
     progress = None
     if args.verbose and not args.quiet:

@@ -436,6 +436,7 @@ class SolverSettings:
     database    path of the subgraph database (SQLite) or None for in-memory
     order       gnpp: when the relaxations are solved relative to the full graph-NLP
                 ("full_first", "relaxed_first", "staged"; None: the solver's default)
+    jit         run large derivative kernels as compiled C (cached on disk; `gnppdsl.nlp.jit`)
     """
 
     algorithm: str = "gnpp"
@@ -449,6 +450,7 @@ class SolverSettings:
     max_iter: int = 1000
     database: str | None = None
     order: str | None = None
+    jit: bool | None = None
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -458,7 +460,7 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str,
+    "order": str, "jit": bool,
 }
 
 

@@ -16,6 +16,11 @@ MEASURES = ("travel",)
 
 def _setting_value(res, s: ast.Setting, want: type):
     v = s.value
+    if want is bool:
+        if v.kind != "name" or v.value not in ("true", "false"):
+            res.err(v.span, f"'{s.key.value}' must be true or false", "setting")
+            return None
+        return v.value == "true"
     if want in (int, float):
         if v.kind != "number":
             res.err(v.span, f"'{s.key.value}' must be a number", "setting")

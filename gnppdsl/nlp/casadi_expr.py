@@ -692,30 +692,32 @@ def _open_rows(cb: CompiledBody, slots: list, p) -> tuple[Any, Any, Any]:
     return cb.open_function(*slots, p, O), O, cb.stops(*slots, p)
 
 
-def _closed(name: str, inputs: list, O, Ov, D) -> ca.Function:
+def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -> ca.Function:
     """Function inputs -> D with the stop-gradient symbols O replaced by their values Ov (both
     functions of `inputs`). Why an MX wrapper around two SX Functions instead of
     `ca.substitute`: substituting into a Panda Hessian re-evaluates its whole SX graph (0.5 s of
-    lab1's assembly); the wrapper costs two call nodes."""
+    lab1's assembly); the wrapper costs two call nodes. `native` (a `jit.KernelCache.native`)
+    may replace the pure SX part, the derivative itself, by compiled code."""
+    native = native or (lambda f: f)
     if O.numel() == 0:
-        return ca.Function(name, inputs, [D])
-    open_f = ca.Function(name + "_open", [*inputs, O], [D])
+        return native(ca.Function(name, inputs, [D]))
+    open_f = native(ca.Function(name + "_open", [*inputs, O], [D]))
     stop_f = ca.Function(name + "_stops", inputs, [Ov])
     m = [ca.MX.sym(f"a{i}", x.sparsity()) for i, x in enumerate(inputs)]
     return ca.Function(name, m, [open_f(*m, stop_f(*m))])
 
 
-def direct_jacobian(cb: CompiledBody) -> ca.Function:
+def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
     """(x_0, ..., p) -> dh/dX by differentiating the whole body at once (reference for the
     grouped assembly; used for bodies without repeated constraints)."""
     F = cb.function
     slots, p = _symbols(cb)
     X = ca.vertcat(*slots)
     out, O, Ov = _open_rows(cb, slots, p)
-    return _closed(F.name() + "_jac", [*slots, p], O, Ov, ca.jacobian(out, X))
+    return _closed(F.name() + "_jac", [*slots, p], O, Ov, ca.jacobian(out, X), native)
 
 
-def direct_hessian(cb: CompiledBody) -> ca.Function:
+def direct_hessian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
     """(x_0, ..., p, lam) -> d^2 (lam . h) / dX^2 by differentiating the whole body at once."""
     F = cb.function
     slots, p = _symbols(cb)
@@ -723,7 +725,7 @@ def direct_hessian(cb: CompiledBody) -> ca.Function:
     X = ca.vertcat(*slots)
     out, O, Ov = _open_rows(cb, slots, p)
     H = ca.hessian(ca.dot(lam, out), X)[0] if cb.n_rows else ca.SX(X.numel(), X.numel())
-    return _closed(F.name() + "_hess", [*slots, p, lam], O, Ov, H)
+    return _closed(F.name() + "_hess", [*slots, p, lam], O, Ov, H, native)
 
 
 class BodyCompiler:
@@ -732,8 +734,12 @@ class BodyCompiler:
     Why a class: it owns the cache and the injected geometry, and lives as long as a solve loop
     so that every template is compiled once across all the graph-NLPs of the loop."""
 
-    def __init__(self, geometry: Geometry | None = None):
+    def __init__(self, geometry: Geometry | None = None, kernels: Any = None):
+        """`kernels`: a `gnppdsl.nlp.jit.KernelCache` to run the large derivative kernels as
+        compiled code (None: casadi's virtual machine)."""
         self.geometry = geometry
+        self.kernels = kernels
+        self._native = kernels.native if kernels is not None else None
         self._cache: dict[tuple, CompiledBody] = {}
         # per-instance memo (by identity; the instance is kept alive in the value): lifting and
         # hashing a body costs more than a lookup, and every subgraph re-assembles its factors
@@ -751,7 +757,7 @@ class BodyCompiler:
         hit = self._jacobians.get(id(cb))
         if hit is not None and hit[0] is cb:
             return hit[1]
-        jf = self._grouped_derivative(cb, False) if _has_repeats(cb) else direct_jacobian(cb)
+        jf = self._grouped_derivative(cb, False) if _has_repeats(cb) else direct_jacobian(cb, self._native)
         self._jacobians[id(cb)] = (cb, jf)
         return jf
 
@@ -764,7 +770,7 @@ class BodyCompiler:
         hit = self._hessians.get(id(cb))
         if hit is not None and hit[0] is cb:
             return hit[1]
-        hf = self._grouped_derivative(cb, True) if _has_repeats(cb) else direct_hessian(cb)
+        hf = self._grouped_derivative(cb, True) if _has_repeats(cb) else direct_hessian(cb, self._native)
         self._hessians[id(cb)] = (cb, hf)
         return hf
 
@@ -794,7 +800,7 @@ class BodyCompiler:
             O, Ov = ((ca.vertcat(*t) for t in zip(*builder.stops)) if builder.stops
                      else (ca.SX(0, 1), ca.SX(0, 1)))
             ins = [*pts, *slots, p, lam] if hessian else [*pts, *slots, p]
-            fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D)
+            fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D, self._native)
         self._reps[key] = fn
         return fn
 

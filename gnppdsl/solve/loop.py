@@ -79,6 +79,7 @@ class SolveOptions:
                                      # = relaxations loose -> tight before the full graph;
                                      # "staged" = the small relaxations first, then the full
                                      # graph, the others only to find a conflict (see `evaluate`)
+    jit: bool = False                # large derivative kernels as compiled C (gnppdsl.nlp.jit)
 
     @staticmethod
     def from_settings(settings: Any = None, **overrides: Any) -> "SolveOptions":
@@ -86,7 +87,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp", "order"):
+                         "database", "max_iter", "nlp", "order", "jit"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -678,6 +679,7 @@ class _Run:
         self.task = compiled.task
         self.start = time.perf_counter()
         self.cpu_start = time.process_time()
+        self.children_cpu_start = _children_cpu()
         self.deadline = self.start + options.time_limit
         self.stats = Stats()
         self.conflicts: list[Conflict] = []
@@ -687,7 +689,10 @@ class _Run:
         t0 = time.perf_counter()
         self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
         self.stats.logic_time += time.perf_counter() - t0
-        self.compiler = BodyCompiler(compiled.geometry)
+        from gnppdsl.nlp import jit
+
+        self.kernels = jit.KernelCache() if jit.enabled(options.jit) else None
+        self.compiler = BodyCompiler(compiled.geometry, kernels=self.kernels)
         self.solvers: list[Any] = []      # every FeasibilitySolver of this run (ipopt runs, time)
         self.nlp_calls = 0                # NLPs solved through _Checker.solve
         self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
@@ -838,7 +843,12 @@ class _Run:
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.stats.total_time = time.perf_counter() - self.start
-        self.stats.cpu_time = time.process_time() - self.cpu_start
+        # CPU of this process and of the C compiler it ran (setting jit; 0 with a warm cache)
+        self.stats.cpu_time = time.process_time() - self.cpu_start + _children_cpu() - self.children_cpu_start
+        if self.kernels is not None:
+            self.stats.kernels_native = self.kernels.loaded
+            self.stats.kernels_compiled = self.kernels.compiled
+            self.stats.kernel_compile_time = self.kernels.compile_time
         # NLPs = feasibility problems solved (each may take several ipopt runs: restarts and
         # a polish before an infeasible verdict, counted in ipopt_runs); time of all of them
         self.stats.nlp_solves = self.nlp_calls + self.heuristic_solves
@@ -1120,6 +1130,14 @@ IDLE_MOTION = 1e-3
 """Largest keyframe change (per coordinate) of a trajectory that `motions_between_keyframes`
 first tries with the straight line fixed (a waiting arm); if that phase fails it is solved
 again with the trajectory free, so this is a speed setting, never a restriction."""
+
+
+def _children_cpu() -> float:
+    """CPU seconds of finished child processes (the C compiler of `gnppdsl.nlp.jit`)."""
+    import resource
+
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
 
 
 def _fixed(v: VarInstance, value: Any) -> VarInstance:

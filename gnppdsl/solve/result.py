@@ -80,7 +80,7 @@ class Stats:
     factory_time: float = 0.0         # seconds building graph-NLPs
     reach_time: float = 0.0           # seconds building / querying reachability graphs (rlgp)
     total_time: float = 0.0           # wall clock
-    cpu_time: float = 0.0             # CPU seconds of this process (the paper's "time")
+    cpu_time: float = 0.0             # CPU seconds of this process and its C compiler runs (the paper's "time")
     plans: int = 0                    # candidate logic plans evaluated
     conflicts: int = 0
     db_feasible_hits: int = 0
@@ -90,6 +90,9 @@ class Stats:
     rechecks_feasible: int = 0        # failed graphs solved on a second try from their slices' solutions
     screened_levels: int = 0          # relaxation levels skipped: nearly hold at the full graph's x*
     inferred_verdicts: int = 0        # infeasible components located at an infeasible graph's x*
+    kernels_native: int = 0           # derivative kernels run as compiled C (setting jit)
+    kernels_compiled: int = 0         # ... of which compiled by this solve (the rest: from the cache)
+    kernel_compile_time: float = 0.0  # seconds generating and compiling them (C compiler included)
     N0: int | None = None             # length of the first logical plan
     N: int | None = None              # length of the returned solution
     max_violation: float | None = None   # independent re-check of every factor at the solution
@@ -177,6 +180,9 @@ class Result:
             + f"plans {s.plans}, conflicts {s.conflicts}, "
             f"N0 {_opt(s.N0)}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
         )
+        if s.kernels_native:
+            lines.append(f"jit: {s.kernels_native} derivative kernels as compiled C ({s.kernels_compiled} "
+                         f"compiled now, {s.kernel_compile_time:.1f} s; the others from the cache)")
         if s.db_feasible_hits or s.db_infeasible_hits:
             lines.append(f"database: {s.db_feasible_hits} feasible and {s.db_infeasible_hits} "
                          f"infeasible hits (NLPs skipped)")

@@ -1,0 +1,159 @@
+"""Native compilation of large SX derivative kernels, kept in a cache on disk.
+
+Why: on the robot domains most of an ipopt iteration goes into the per-template Hessians and
+Jacobians (`BodyCompiler.hessian` / `.jacobian`): a Panda link-object distance differentiated
+through forward kinematics is a ~9,000-instruction SX graph per row, which casadi's virtual
+machine runs at ~7 ns per instruction. Generated as C and compiled, the same graph runs about
+3x faster (lab1's path_clear representative Hessian, 53k instructions: 410 us in the virtual
+machine, 115 us compiled with gcc -O0; -O1 was 4x faster but took 5-16 s per kernel to
+compile against 1-2 s). Measured on whole solves with a warm cache (seed 0, CPU s):
+lab1 3.2 -> 3.0, lab2 6.4 -> 5.5, lab4 26.0 -> 19.2.
+
+Compiling costs 1-2 s per kernel (lab1: 32 kernels, 43 s), so the libraries are kept in a
+cache directory keyed by a fingerprint of the Function (see `KernelCache.key`): a domain's
+kernels are compiled once per machine and loaded by later solves. Only pure SX Functions of at
+least `MIN_INSTRUCTIONS` instructions are compiled (callbacks cannot be generated as C; small
+kernels gain less than they cost to compile). Whatever goes wrong (no C compiler, a compile
+error, a library that does not reproduce the virtual machine's numbers bit for bit at the
+fingerprint's probe points) leaves the Function as it was: a speed option, never a change of
+results.
+
+Turned on by the solver setting `jit = true` (`SolveOptions.jit`, `gnpp solve --jit`);
+`GNPP_JIT=0` turns it off whatever the setting says (the test suite does), `GNPP_JIT_CACHE`
+sets the cache directory (default `~/.cache/gnppdsl/jit`), `GNPP_CC` the compiler (`cc`).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+MIN_INSTRUCTIONS = 5000
+FLAGS = ("-O0", "-shared", "-fPIC")
+
+
+def enabled(requested: bool) -> bool:
+    """The `jit` setting, unless the environment says GNPP_JIT=0."""
+    return bool(requested) and os.environ.get("GNPP_JIT", "1") != "0"
+
+
+def cache_dir() -> Path:
+    env = os.environ.get("GNPP_JIT_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "gnppdsl" / "jit"
+
+
+def find_compiler() -> str | None:
+    """Path of the C compiler, or None when there is none (then nothing is compiled)."""
+    return shutil.which(os.environ.get("GNPP_CC", "cc"))
+
+
+class KernelCache:
+    """Replaces large SX Functions by compiled ones; counts what it did (solve statistics)."""
+
+    def __init__(self, directory: Path | None = None, min_instructions: int = MIN_INSTRUCTIONS,
+                 cc: str | None = None):
+        self.directory = Path(directory) if directory is not None else cache_dir()
+        self.min_instructions = min_instructions
+        self.cc = cc if cc is not None else find_compiler()
+        self.compiled = 0          # libraries built by this process
+        self.loaded = 0            # kernels in use as native code
+        self.failed = 0            # kernels left to the virtual machine after an error
+        self.compile_time = 0.0    # seconds spent generating and compiling C
+        self.last_error = ""
+        self._memo: dict[str, ca.Function] = {}
+
+    def native(self, f: ca.Function) -> ca.Function:
+        """A compiled Function with f's inputs, outputs and values, or f itself."""
+        if self.cc is None or not f.is_a("SXFunction") or f.n_instructions() < self.min_instructions \
+                or f.has_free():
+            return f
+        try:
+            key, expected = self.key(f)
+        except Exception:          # cannot be evaluated at the probes: leave it
+            return f
+        hit = self._memo.get(key)
+        if hit is not None:
+            return hit
+        lib = self.directory / f"{key}.so"
+        try:
+            if not lib.exists():
+                self._build(f, key, lib)
+            g = ca.external(_symbol(key), str(lib))
+            if self.values(g, self.probes(f)) != expected:
+                raise RuntimeError(f"{lib}: the compiled kernel does not reproduce the original")
+        except Exception as err:   # no compiler output, a damaged or stale library, ...
+            self.failed += 1
+            self.last_error = str(err)[-500:]
+            return f
+        self.loaded += 1
+        self._memo[key] = g
+        return g
+
+    @staticmethod
+    def probes(f: ca.Function) -> list[list[np.ndarray]]:
+        """Two fixed pseudo-random inputs (the same in every process)."""
+        rng = np.random.default_rng(20261121)
+        return [[rng.uniform(-1.0, 1.0, f.size_in(i)) for i in range(f.n_in())] for _ in range(2)]
+
+    @staticmethod
+    def values(f: ca.Function, probes: list) -> bytes:
+        out = []
+        for args in probes:
+            out += [np.asarray(ca.DM(y).nonzeros(), dtype=float).tobytes() for y in f.call(args)]
+        return b"".join(out)
+
+    @classmethod
+    def key(cls, f: ca.Function) -> tuple[str, bytes]:
+        """(cache key, f's values at the probes). The key hashes the casadi version, the flags,
+        f's shape (input sizes, output sparsity, instruction count) and its values at two
+        fixed random inputs. Why not `Function.serialize`: it took 24 ms on a 50k-instruction
+        Hessian (0.75 s of a 3 s lab1 solve), two evaluations take ~1 ms; two different SX
+        graphs of the same shape agreeing bit for bit at two random points is not a practical
+        concern, and a loaded library is checked against these values anyway."""
+        h = hashlib.sha256()
+        h.update(f"{ca.__version__}|{' '.join(FLAGS)}|{f.n_instructions()}".encode())
+        for i in range(f.n_in()):
+            h.update(f"in{f.size_in(i)}".encode())
+        for i in range(f.n_out()):
+            sp = f.sparsity_out(i)
+            h.update(f"out{sp.size()}{sp.nnz()}".encode())
+            h.update(np.asarray(sp.colind(), dtype=np.int64).tobytes())
+            h.update(np.asarray(sp.row(), dtype=np.int64).tobytes())
+        vals = cls.values(f, cls.probes(f))
+        h.update(vals)
+        return h.hexdigest()[:32], vals
+
+    def _build(self, f: ca.Function, key: str, lib: Path) -> None:
+        t0 = time.perf_counter()
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(prefix="gnpp_jit_") as tmp:
+                sym = _symbol(key)
+                named = ca.Function(sym, f.sx_in(), f.call(f.sx_in()), f.name_in(), f.name_out())
+                cg = ca.CodeGenerator(sym + ".c", {"with_header": False})
+                cg.add(named)
+                cg.generate(tmp + os.sep)
+                out = Path(tmp) / (sym + ".so")
+                proc = subprocess.run([self.cc, *FLAGS, "-o", str(out), str(Path(tmp) / (sym + ".c"))],
+                                      capture_output=True, text=True)
+                if proc.returncode != 0:
+                    raise RuntimeError(f"{self.cc} failed: {proc.stderr[-1000:]}")
+                # atomic: a concurrent solve sees either no library or a complete one
+                part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
+                shutil.copyfile(out, part)
+                os.replace(part, lib)
+            self.compiled += 1
+        finally:
+            self.compile_time += time.perf_counter() - t0
+
+
+def _symbol(key: str) -> str:
+    """The kernel's C name (an identifier: the key may start with a digit)."""
+    return f"gnpp_{key}"
