@@ -697,20 +697,14 @@ def factor_violation(factor: FactorInstance, values: Mapping[VarInstance, Any],
 
 
 def max_violation(factors: Iterable[FactorInstance], values: Mapping[VarInstance, Any],
-                  geometry: Geometry | None = None, stop_above: float | None = None
-                  ) -> tuple[float, FactorInstance | None]:
+                  geometry: Geometry | None = None) -> tuple[float, FactorInstance | None]:
     """(largest violation over all factors, the factor attaining it; None if no factor).
 
-    One memo for the whole call: a node shared by several factors is evaluated once.
-    `stop_above`: for callers that only ask "does every factor hold within a tolerance": return
-    at the first factor violated by more than it, with that factor's violation (a lower bound
-    of the largest, and above `stop_above` exactly when the largest is)."""
+    One memo for the whole call: a node shared by several factors is evaluated once."""
     m, token = _start_call(geometry)
     best, arg = 0.0, None
     for f in factors:
         v = _worst(*_values_of_rows(f, values, m, token))
         if arg is None or v > best:
             best, arg = v, f
-            if stop_above is not None and best > stop_above:
-                break
     return best, arg

@@ -251,19 +251,3 @@ def test_bodies_equal_up_to_the_sign_of_a_zero_keep_their_own_constants():
     assert constraint_rows(neg, x) == _reference_rows(neg, x) == [("ineq", -math.pi)]
     assert max_violation([neg, pos], x) == (math.pi, pos)
 
-
-def test_stop_above_answers_the_tolerance_question_with_fewer_factors():
-    c, factors, variables, guess = graph("lab1")
-    rng = np.random.default_rng(13)
-    for scale, tol in ((0.0, 1e-6), (0.3, 1e-6), (0.3, 1e9)):
-        x = random_point(variables, guess, rng, scale)
-        worst, arg = max_violation(factors, x, c.geometry)
-        early, at = max_violation(factors, x, c.geometry, stop_above=tol)
-        assert (early > tol) == (worst > tol)
-        assert early <= worst and same_bits(early, factor_violation(at, x, c.geometry))
-        if worst <= tol:
-            assert (early, at) == (worst, arg)
-        else:
-            ref = [reference_violation(_reference_rows(f, x, c.geometry)) for f in factors]
-            first = next(i for i, v in enumerate(ref) if v > tol)
-            assert at is factors[first]
