@@ -125,7 +125,7 @@ def test_rows_agree_with_the_casadi_path(name):
 
 
 def test_sharing_and_memo_never_answer_for_other_inputs():
-    """Subsets, other orders, changed values, a second geometry: always the tree walk's rows."""
+    """Subsets, other orders, changed values, arrays changed in place: the tree walk's rows."""
     c, factors, variables, guess = graph("lab1")
     rng = np.random.default_rng(11)
     x1 = random_point(variables, guess, rng, 0.1)
