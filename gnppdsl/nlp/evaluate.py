@@ -452,12 +452,13 @@ class _Template:
     """A body compiled once for every factor with that body and those slot signatures: its
     nodes in a small table (leaves: the slots), in an order where children come first."""
 
-    __slots__ = ("table", "order", "rows")
+    __slots__ = ("table", "order", "rows", "size")
 
     def __init__(self, body: tuple[Constraint, ...], sigs: tuple[tuple[int, int], ...]):
         self.table = t = _Table()
         c = _Compiler(body, sigs, t)
         self.rows = [c.constraint(con) for con in body]
+        self.size = len(c.seen)             # expression objects in the body (it is held)
         order: list[int] = []
         done: set[int] = set()
         for _, root in self.rows:           # post-order from the rows: only needed nodes
@@ -522,17 +523,23 @@ By identity, not by equality: equal bodies would share one compiled form even wh
 in the sign of a zero constant (Num(0.0) == Num(-0.0)), and hashing a whole tree costs about as
 much as compiling it. The body is held, so its id stays its own."""
 _MAX_TEMPLATES = 2_000
+_MAX_HELD = 1_000_000
+"""Expression objects of the held bodies above which `_BODIES` is emptied before a call (the
+factory holds the bodies of a problem anyway; this bounds what outlives it, ~150 MB)."""
+_held = 0
 
 
 def _template(factor: FactorInstance) -> _Template:
     """The compiled body of a factor, shared by every factor with the same body object and slot
     signatures."""
     body, sigs = factor.body, tuple([_slot_signature(v) for v in factor.variables])
+    global _held
     hit = _BODIES.get((id(body), sigs))
     if hit is not None and hit[0] is body:
         return hit[1]
     tpl = _Template(body, sigs)
     _BODIES[(id(body), sigs)] = (body, tpl)
+    _held += tpl.size
     return tpl
 
 
@@ -598,12 +605,13 @@ def _geometry_token(geometry: Any) -> int | None:
 
 def _start_call(geometry: Any) -> tuple[dict, int | None]:
     """The memo of one public call (holding the geometry) and the geometry's token."""
-    global _TABLE
+    global _TABLE, _held
     if len(_TABLE.op) > _MAX_NODES:      # bound the memory; only between calls
         _TABLE = _Table()
         _PROGRAMS.clear()
-    if len(_BODIES) > _MAX_TEMPLATES:
+    if len(_BODIES) > _MAX_TEMPLATES or _held > _MAX_HELD:
         _BODIES.clear()
+        _held = 0
     return {_GEO: geometry}, _geometry_token(geometry)
 
 

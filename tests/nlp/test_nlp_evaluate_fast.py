@@ -227,14 +227,18 @@ def test_constant_rows_nan_and_broadcasting_as_the_tree_walk():
     assert factor_violation(f, {v: np.array([1.0, 2.0, 3.0])}) == math.inf       # sqrt(-1): NaN
 
 
-def test_the_table_is_rebuilt_when_it_grows_too_large(monkeypatch):
+def test_the_caches_are_emptied_when_they_grow_too_large(monkeypatch):
     c, factors, variables, guess = graph("planar_p3")
     x = random_point(variables, guess, np.random.default_rng(5), 0.1)
     first = max_violation(factors, x, c.geometry)
     monkeypatch.setattr(evaluate, "_MAX_NODES", 1)
+    monkeypatch.setattr(evaluate, "_MAX_HELD", 1)
     table = evaluate._TABLE
+    assert evaluate._BODIES
     assert max_violation(factors, x, c.geometry) == first
     assert evaluate._TABLE is not table
+    assert max_violation(factors[:1], x, c.geometry) == max_violation(factors[:1], x, c.geometry)
+    assert len(evaluate._BODIES) == 1             # emptied before the call, then one body
 
 
 def test_bodies_equal_up_to_the_sign_of_a_zero_keep_their_own_constants():
