@@ -596,8 +596,12 @@ class FeasibilitySolver:
 
     def solve(self, graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarray] | None = None,
               initial_guess: Mapping[VarInstance, np.ndarray] | None = None,
-              seed: int = 0) -> FeasibilityResult:
-        """Decide Feas(graph) (Definition 4.3) and return the convergence point."""
+              seed: int = 0, first_attempt: int = 0) -> FeasibilityResult | None:
+        """Decide Feas(graph) (Definition 4.3) and return the convergence point.
+
+        `first_attempt` k > 0 runs only the random restarts k..`restarts` (the starts of an
+        earlier call with restarts=0 are not repeated): how a verdict found from one start is
+        confirmed later. None when no attempt is left."""
         t0 = time.perf_counter()
         tol = self.options.tolerance
         if graph.n_factors == 0:
@@ -606,7 +610,7 @@ class FeasibilitySolver:
         best = None
         iters, starts = 0, 0
         polished = False                 # the current best is a polished point
-        for k in range(1 + max(0, self.options.restarts)):
+        for k in range(first_attempt, 1 + max(0, self.options.restarts)):
             x0 = self._start(a, graph, warm_start, initial_guess, seed, k)
             x, slack, it, status = self._run(a, x0, self.options.regularisation)
             iters += it
@@ -622,6 +626,8 @@ class FeasibilitySolver:
                     best, polished = (values, per, worst, slack, status, x), True
             if best[2] <= tol:
                 break
+        if best is None:
+            return None
         if best[2] > tol and self.options.polish and not polished:
             # The pull towards the start can outweigh the L1 penalty of a badly scaled row
             # (gradient below rho): re-solve the best point with a much weaker pull before

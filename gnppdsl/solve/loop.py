@@ -80,6 +80,8 @@ class SolveOptions:
                                      # "staged" = the small relaxations first, then the full
                                      # graph, the others only to find a conflict (see `evaluate`)
     jit: bool = False                # large derivative kernels as compiled C (gnppdsl.nlp.jit)
+    lazy_search: bool = True         # gnpp: Alg. 1's search solves each subgraph from one start
+                                     # and only the conflict gets the restarts (`_Checker.confirm`)
 
     @staticmethod
     def from_settings(settings: Any = None, **overrides: Any) -> "SolveOptions":
@@ -294,6 +296,8 @@ class _Checker:
         self.values: dict[VarInstance, np.ndarray] = {}
         self.results: dict[frozenset, Any] = {}
         self.points: list[dict] = []      # convergence points of infeasible solves, newest first
+        self.lazy = False                 # Alg. 1's search: one start per NLP (see `confirm`)
+        self.unconfirmed: set = set()     # signatures of infeasible verdicts from one start
 
     def solve(self, g: Any) -> Any:
         run = self.run
@@ -355,9 +359,18 @@ class _Checker:
                 warm = {}
         if r is None:
             # ipopt's wall-time limit is fixed when a graph's NLP is assembled: give it what is left
-            self.solver.options.time_limit = max(0.05, run.remaining())
-            r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
+            opts = self.solver.options
+            opts.time_limit = max(0.05, run.remaining())
+            saved = opts.restarts
+            if self.lazy:
+                opts.restarts = 0
+            try:
+                r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
+            finally:
+                opts.restarts = saved
             run.nlp_calls += 1
+            if self.lazy and not r.feasible and saved > 0:
+                self.unconfirmed.add(key)
         if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
             # cut short by the time limit: not a verdict (never a conflict, never stored)
             raise _TimeUp()
@@ -529,6 +542,40 @@ class _Checker:
         finally:
             self.run.stats.reuse_time += time.perf_counter() - t0
 
+    def confirm(self, g: Any) -> bool:
+        """Is the infeasible verdict on g final? A verdict from one start (Alg. 1's search runs
+        `lazy`) gets the random restarts it skipped (the same NLP, not a new one), so a
+        conflict is learnt from exactly the evidence it was before: every start infeasible.
+
+        Why lazy: the restarts of every intermediate infeasible verdict of the time search and
+        the convergence heuristic were two thirds of Lab 3's NLP time (3 starts of 60-110
+        iterations each, ~1-4 s per subgraph), while only the subgraph that becomes the
+        conflict needs them. False means a restart found g feasible: the one-start verdicts
+        that led to it are suspect (the caller forgets them and searches again with restarts)."""
+        key = g.signature()
+        if key not in self.unconfirmed:
+            return True
+        self.unconfirmed.discard(key)
+        run = self.run
+        opts = self.solver.options
+        opts.time_limit = max(0.05, run.remaining())
+        r = self.solver.solve(g, warm_start={v: self.values[v] for v in g.variables if v in self.values},
+                              seed=run.options.seed, first_attempt=1)
+        if r is not None and not r.feasible and (time.perf_counter() >= run.deadline
+                                                 or "walltime" in str(r.status).lower()):
+            raise _TimeUp()
+        if r is None or not r.feasible:
+            return True
+        self.results[key] = r
+        self.values.update(r.values)
+        return False
+
+    def forget_unconfirmed(self) -> None:
+        """Drop every one-start infeasible verdict (after one of them proved wrong)."""
+        for key in self.unconfirmed:
+            self.results.pop(key, None)
+        self.unconfirmed.clear()
+
     def recheck(self, g: Any) -> Any:
         """Second opinion on an infeasible g whose large strict time slices are feasible (see
         `find_infeasible_subgraph`): forget its verdict and solve it again, now warm-started
@@ -573,6 +620,8 @@ class _Checker:
                 bad.append((c, per, vals, worst))
         if len(bad) == 1 and good == len(comps) - 1:
             c, per, vals, worst = bad[0]
+            if g.signature() in self.unconfirmed:
+                self.unconfirmed.add(c.signature())
             if c.signature() not in self.results:
                 self.results[c.signature()] = FeasibilityResult(
                     False, vals, per, worst, r.slack, 0.0, 0, f"the only violated component of {g.name}", 0)
@@ -618,7 +667,7 @@ class _Checker:
                     run.stats.db_infeasible_hits += 1
                 return verdict
         r = self.solve(g)
-        if self.use_db and run.db is not None:
+        if self.use_db and run.db is not None and (r.feasible or g.signature() not in self.unconfirmed):
             conflict = None
             if not r.feasible:
                 try:
@@ -993,16 +1042,31 @@ class _Run:
             comps = sorted(g_r.connected_components(),      # deterministic: no set order
                            key=lambda c: (not any(ref in violated for ref in c.factor_refs),
                                           c.steps or (0, 0), min(c.factor_refs)))
-            found = None
-            for comp in comps:
-                search = find_infeasible_subgraph(comp, (), sw.replace("r", "").replace("g", ""), check=checker,
-                                                  solver=solver, tolerance=self.options.tolerance,
-                                                  recheck=checker.recheck)
-                self.stats.rechecks_feasible += search.stats.rechecks_feasible
-                self.heuristic_solves += search.stats.heuristic_solves
-                if search.subgraph is not None:
-                    found = search.subgraph
-                    break
+
+            def search_components(lazy: bool) -> Any:
+                checker.lazy = lazy
+                try:
+                    for comp in comps:
+                        search = find_infeasible_subgraph(comp, (), sw.replace("r", "").replace("g", ""),
+                                                          check=checker, solver=solver,
+                                                          tolerance=self.options.tolerance,
+                                                          recheck=checker.recheck)
+                        self.stats.rechecks_feasible += search.stats.rechecks_feasible
+                        self.heuristic_solves += search.stats.heuristic_solves
+                        if search.subgraph is not None:
+                            return search.subgraph
+                    return None
+                finally:
+                    checker.lazy = False
+
+            found = search_components(self.options.lazy_search)
+            if found is not None and not checker.confirm(found):
+                # a one-start verdict led the search to a feasible subgraph: search again with
+                # every verdict from all its starts (the behaviour without lazy_search)
+                self.say(f"  {found.name}: feasible from a restart; searching {g_r.name} again with restarts")
+                self.stats.lazy_retries += 1
+                checker.forget_unconfirmed()
+                found = search_components(False)
             if found is None:
                 # Every component is feasible, so G_r is (Property 4.5): the solver missed the
                 # joint solution. The union of the components' solutions is one; never turn a

@@ -55,10 +55,10 @@ def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_
         seen_idle.append((s, idle))
         return idle
 
-    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0):
+    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0, **kw):
         if "{moving}" in g.name:
             phase_graphs.append(g)
-        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed, **kw)
 
     monkeypatch.setattr(loop._Checker, "idle_motions", spy_idle)
     monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
@@ -110,10 +110,10 @@ def test_a_phase_whose_straight_line_start_satisfies_it_needs_no_nlp(monkeypatch
     real_solve = FeasibilitySolver.solve
     phase_nlps = []
 
-    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0):
+    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0, **kw):
         if "{motion" in g.name:
             phase_nlps.append(g.name)
-        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed, **kw)
 
     monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
     res = _solve(_toy())

@@ -133,14 +133,14 @@ def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, 
     real_solve = FeasibilitySolver.solve
     fixed_bounds = []
 
-    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0):
+    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0, **kw):
         if "{motion" in g.name:
             # every keyframe variable of a phase NLP is fixed by its bounds, the motion is free
             keys = [v for v in g.variables if not v.waypoints]
             assert keys and all(v.lower is not None and v.lower == v.upper for v in keys)
             assert all(v.lower is None or v.lower != v.upper for v in g.variables if v.waypoints)
             fixed_bounds.append(g.name)
-        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed, **kw)
 
     results = []
     real = loop._Checker.motions_between_keyframes
@@ -166,11 +166,11 @@ def test_a_failed_phase_falls_back_to_the_joint_solve_and_is_no_verdict(monkeypa
     real = FeasibilitySolver.solve
     forced = []
 
-    def flaky(self, g, warm_start=None, initial_guess=None, seed=0):
+    def flaky(self, g, warm_start=None, initial_guess=None, seed=0, **kw):
         if "{motion" in g.name:
             forced.append(g.name)
             return FeasibilityResult(False, {}, {ref: 1.0 for ref in g.factor_refs}, 1.0, 1.0, 0.0, 0, "forced", 1)
-        return real(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed)
+        return real(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed, **kw)
 
     monkeypatch.setattr(FeasibilitySolver, "solve", flaky)
     compiled = _toy()

@@ -1,0 +1,64 @@
+"""Alg. 1's search with one start per NLP (`SolveOptions.lazy_search`, `_Checker.confirm`):
+the conflict it returns gets the skipped random restarts before it is learnt, and when a
+restart finds it feasible the search is repeated with every verdict from all its starts.
+Checked on the planar examples against independent re-checks (plans, factors, conflicts by
+multi-start) and against the same solve without lazy search."""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from gnppdsl.solve import loop
+from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from solve_checks import check_conflict_infeasible, check_solution
+
+PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
+
+
+@pytest.mark.parametrize("name,n", [("p3_occupied", 4), ("p6_clutter", 4)])
+def test_lazy_and_strict_search_both_give_real_conflicts_and_the_same_length(name, n):
+    compiled = load_and_compile(str(PLANAR / f"{name}.pntc"))
+    runs = {}
+    for lazy in (True, False):
+        res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, lazy_search=lazy))
+        assert res.solved and res.stats.N == n, res.message
+        check_solution(compiled, res)
+        for c in res.conflicts:
+            if c.source == "nlp":
+                check_conflict_infeasible(compiled, c)
+        runs[lazy] = res.stats
+    # the same NLPs are solved (a lazy verdict is the first start of the same solve)...
+    assert runs[True].nlp_solves == runs[False].nlp_solves
+    # ...from no more starts (a confirmed conflict may add one polish run of its best restart)
+    assert runs[True].ipopt_runs <= runs[False].ipopt_runs + runs[True].conflicts
+
+
+def test_a_wrong_one_start_verdict_is_caught_by_the_restarts_and_the_search_is_repeated(monkeypatch):
+    """Every feasible verdict of the lazy search is turned into a false 'infeasible' (as a
+    stuck first start would give): the subgraph the search ends on is then feasible, its
+    restarts say so, and the strict search finds the real conflict; the answer is the same."""
+    real = loop._Checker.solve
+    lies = []
+
+    def lying(self, g):
+        r = real(self, g)
+        if self.lazy and r.feasible:
+            lies.append(g.name)
+            fake = replace(r, feasible=False, max_violation=1.0,
+                           violations={ref: 1.0 for ref in g.factor_refs})
+            self.results[g.signature()] = fake
+            self.unconfirmed.add(g.signature())
+            return fake
+        return r
+
+    monkeypatch.setattr(loop._Checker, "solve", lying)
+    compiled = load_and_compile(str(PLANAR / "p5_handover.pntc"))
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60))
+    assert lies and res.stats.lazy_retries >= 1
+    assert res.solved and res.stats.N == 3, res.message
+    check_solution(compiled, res)
+    for c in res.conflicts:
+        if c.source == "nlp":
+            check_conflict_infeasible(compiled, c)
