@@ -55,7 +55,7 @@ def test_a_wrong_one_start_verdict_is_caught_by_the_restarts_and_the_search_is_r
 
     monkeypatch.setattr(loop._Checker, "solve", lying)
     compiled = load_and_compile(str(PLANAR / "p5_handover.pntc"))
-    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60))
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, lazy_search=True))
     assert lies and res.stats.lazy_retries >= 1
     assert res.solved and res.stats.N == 3, res.message
     check_solution(compiled, res)
