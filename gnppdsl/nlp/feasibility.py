@@ -133,7 +133,9 @@ class _Monitor(ca.Callback):
         """`deadline` (time.perf_counter() clock): stop the run at the first iteration after
         it. Why here and not only ipopt's `max_wall_time`: that option is fixed when the NLP
         is assembled, and an assembled NLP is cached and solved again later (restarts, the
-        polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly."""
+        polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly. Only
+        NLPs with a monitor (early_stop: by default those with geometry primitives, whose
+        iterations are the slow ones) have this check; the others keep `max_wall_time`."""
         self.stop_below, self.patience, self.deadline = stop_below, patience, deadline
         self.best, self.best_z, self.since, self.stalled = np.inf, None, 0, False
         self.timed_out = False

@@ -7,7 +7,7 @@ machine runs at ~7 ns per instruction. Generated as C and compiled, the same gra
 3x faster (lab1's path_clear representative Hessian, 53k instructions: 410 us in the virtual
 machine, 115 us compiled with gcc -O0; -O1 was 4x faster but took 5-16 s per kernel to
 compile against 1-2 s). Measured on whole solves with a warm cache (seed 0, CPU s):
-lab1 3.2 -> 3.0, lab2 6.4 -> 5.5, lab4 26.0 -> 19.2.
+lab1 3.3 -> 3.0, lab2 6.4 -> 5.5, lab4 26.0 -> 19.2.
 
 Compiling costs 1-2 s per kernel (lab1: 32 kernels, 43 s), so the libraries are kept in a
 cache directory keyed by a fingerprint of the Function (see `KernelCache.key`): a domain's
@@ -19,8 +19,10 @@ fingerprint's probe points) leaves the Function as it was: a speed option, never
 results.
 
 Turned on by the solver setting `jit = true` (`SolveOptions.jit`, `gnpp solve --jit`);
-`GNPP_JIT=0` turns it off whatever the setting says (the test suite does), `GNPP_JIT_CACHE`
-sets the cache directory (default `~/.cache/gnppdsl/jit`), `GNPP_CC` the compiler (`cc`).
+`GNPP_JIT=0` turns it off whatever the setting says, `GNPP_JIT_CACHE` sets the cache directory
+(default `~/.cache/gnppdsl/jit`; it must be writable: a clear error otherwise), `GNPP_CC` the
+compiler (`cc`). The cache has no size limit: each scene and domain adds its kernels (~30-60
+files of 100-400 kB for the Lab); delete the directory to reclaim the space.
 """
 from __future__ import annotations
 
@@ -35,8 +37,12 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from gnppdsl.errors import UserError
+
 MIN_INSTRUCTIONS = 5000
 FLAGS = ("-O0", "-shared", "-fPIC")
+COMPILE_MARGIN = 5.0       # seconds before the solve's deadline after which nothing is compiled
+COMPILE_TIMEOUT = 120.0    # seconds one compiler run may take
 
 
 def enabled(requested: bool) -> bool:
@@ -46,7 +52,24 @@ def enabled(requested: bool) -> bool:
 
 def cache_dir() -> Path:
     env = os.environ.get("GNPP_JIT_CACHE")
-    return Path(env) if env else Path.home() / ".cache" / "gnppdsl" / "jit"
+    if env:
+        return Path(env)
+    try:
+        return Path.home() / ".cache" / "gnppdsl" / "jit"
+    except RuntimeError:           # no home directory (HOME unset, no passwd entry)
+        return Path(tempfile.gettempdir()) / "gnppdsl-jit"
+
+
+def writable_cache(directory: Path) -> Path:
+    """`directory`, created if needed, after checking that files can be written there."""
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=directory):
+            pass
+    except OSError as err:
+        raise UserError(f"jit: the kernel cache {directory} is not writable ({err.strerror or err}); "
+                        f"set GNPP_JIT_CACHE to a writable directory or solve with --no-jit") from None
+    return directory
 
 
 def find_compiler() -> str | None:
@@ -58,8 +81,11 @@ class KernelCache:
     """Replaces large SX Functions by compiled ones; counts what it did (solve statistics)."""
 
     def __init__(self, directory: Path | None = None, min_instructions: int = MIN_INSTRUCTIONS,
-                 cc: str | None = None):
-        self.directory = Path(directory) if directory is not None else cache_dir()
+                 cc: str | None = None, deadline: float = float("inf")):
+        """`deadline` (time.perf_counter clock): no kernel is compiled when less than
+        `COMPILE_MARGIN` seconds are left (libraries already in the cache are still used)."""
+        self.directory = writable_cache(Path(directory) if directory is not None else cache_dir())
+        self.deadline = deadline
         self.min_instructions = min_instructions
         self.cc = cc if cc is not None else find_compiler()
         self.compiled = 0          # libraries built by this process
@@ -78,19 +104,32 @@ class KernelCache:
             key, expected = self.key(f)
         except Exception:          # cannot be evaluated at the probes: leave it
             return f
+        if not np.isfinite(np.frombuffer(expected, dtype=float)).all():
+            return f               # a NaN or inf at a probe would make the key ambiguous
         hit = self._memo.get(key)
         if hit is not None:
             return hit
         lib = self.directory / f"{key}.so"
-        try:
-            if not lib.exists():
-                self._build(f, key, lib)
-            g = ca.external(_symbol(key), str(lib))
-            if self.values(g, self.probes(f)) != expected:
-                raise RuntimeError(f"{lib}: the compiled kernel does not reproduce the original")
-        except Exception as err:   # no compiler output, a damaged or stale library, ...
+        g = None
+        for attempt in range(2):   # a damaged or stale library is removed and built again once
+            try:
+                if not lib.exists():
+                    if time.perf_counter() > self.deadline - COMPILE_MARGIN:
+                        return f
+                    self._build(f, key, lib)
+                g = ca.external(_symbol(key), str(lib))
+                if self.values(g, self.probes(f)) != expected:
+                    raise RuntimeError(f"{lib}: the compiled kernel does not reproduce the original")
+                break
+            except Exception as err:   # no compiler output, a damaged or stale library, ...
+                g = None
+                self.last_error = str(err)[-500:]
+                if attempt == 0 and lib.exists():
+                    lib.unlink(missing_ok=True)
+                    continue
+                break
+        if g is None:
             self.failed += 1
-            self.last_error = str(err)[-500:]
             return f
         self.loaded += 1
         self._memo[key] = g
@@ -142,13 +181,16 @@ class KernelCache:
                 cg.generate(tmp + os.sep)
                 out = Path(tmp) / (sym + ".so")
                 proc = subprocess.run([self.cc, *FLAGS, "-o", str(out), str(Path(tmp) / (sym + ".c"))],
-                                      capture_output=True, text=True)
+                                      capture_output=True, text=True, timeout=COMPILE_TIMEOUT)
                 if proc.returncode != 0:
                     raise RuntimeError(f"{self.cc} failed: {proc.stderr[-1000:]}")
                 # atomic: a concurrent solve sees either no library or a complete one
                 part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
-                shutil.copyfile(out, part)
-                os.replace(part, lib)
+                try:
+                    shutil.copyfile(out, part)
+                    os.replace(part, lib)
+                finally:
+                    part.unlink(missing_ok=True)
             self.compiled += 1
         finally:
             self.compile_time += time.perf_counter() - t0

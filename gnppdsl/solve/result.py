@@ -94,6 +94,8 @@ class Stats:
     kernels_native: int = 0           # derivative kernels run as compiled C (setting jit)
     kernels_compiled: int = 0         # ... of which compiled by this solve (the rest: from the cache)
     kernel_compile_time: float = 0.0  # seconds generating and compiling them (C compiler included)
+    kernels_failed: int = 0           # kernels left to the virtual machine after an error
+    kernel_error: str = ""            # the last such error
     N0: int | None = None             # length of the first logical plan
     N: int | None = None              # length of the returned solution
     max_violation: float | None = None   # independent re-check of every factor at the solution
@@ -181,6 +183,9 @@ class Result:
             + f"plans {s.plans}, conflicts {s.conflicts}, "
             f"N0 {_opt(s.N0)}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
         )
+        if s.kernels_failed:
+            lines.append(f"jit: {s.kernels_failed} kernels not compiled, run by casadi's virtual machine "
+                         f"(last error: {s.kernel_error.strip().splitlines()[-1][:200] if s.kernel_error.strip() else '?'})")
         if s.kernels_native:
             lines.append(f"jit: {s.kernels_native} derivative kernels as compiled C ({s.kernels_compiled} "
                          f"compiled now, {s.kernel_compile_time:.1f} s; the others from the cache)")

@@ -77,8 +77,10 @@ def test_a_damaged_library_in_the_cache_is_not_used(tmp_path):
     KernelCache(tmp_path, min_instructions=10).native(f)
     (lib,) = tmp_path.glob("*.so")
     lib.write_bytes(b"not a shared library")
-    kc = KernelCache(tmp_path, min_instructions=10)
+    false = jit.shutil.which("false")               # and it cannot be built again
+    kc = KernelCache(tmp_path, min_instructions=10, cc=false or str(tmp_path / "no-cc"))
     assert kc.native(f) is f and kc.failed == 1 and kc.loaded == 0
+    assert not list(tmp_path.glob("*.so"))          # the damaged library was removed
 
 
 def test_without_a_compiler_nothing_changes(tmp_path, monkeypatch):
@@ -152,3 +154,52 @@ def test_jit_setting_reaches_the_options_and_a_bad_value_is_located(tmp_path):
         load_and_compile(str(bad))
     line = len(bad.read_text().splitlines())
     assert "'jit' must be true or false" in str(e.value) and f"p1_one_block.pntc:{line}:" in str(e.value)
+
+
+@needs_cc
+def test_a_failing_compiler_leaves_the_function_and_no_files(tmp_path, monkeypatch):
+    false = jit.shutil.which("false")
+    if false is None:
+        pytest.skip("no `false` program")
+    kc = KernelCache(tmp_path, min_instructions=10, cc=false)
+    f = _kernel()
+    assert kc.native(f) is f and kc.failed == 1 and "failed" in kc.last_error
+    assert not list(tmp_path.iterdir())              # no library, no part file
+
+
+@needs_cc
+def test_a_damaged_library_is_rebuilt_once(tmp_path):
+    f = _kernel()
+    KernelCache(tmp_path, min_instructions=10).native(f)
+    (lib,) = tmp_path.glob("*.so")
+    lib.write_bytes(b"garbage")
+    kc = KernelCache(tmp_path, min_instructions=10)
+    g = kc.native(f)
+    assert g is not f and kc.compiled == 1 and kc.failed == 0
+    _same(f, g)
+
+
+def test_an_unwritable_cache_is_a_clear_user_error(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    with pytest.raises(UserError, match="not writable.*--no-jit"):
+        KernelCache(blocker / "cache", min_instructions=10)
+
+
+@needs_cc
+def test_kernels_with_nan_at_a_probe_are_not_compiled(tmp_path):
+    x = ca.SX.sym("x", 3)
+    e = ca.log(x - 5.0)                               # NaN on the probes' range [-1, 1]
+    for _ in range(6):
+        e = ca.sin(e) * e + x[0]
+    f = ca.Function("nan_at_probes", [x], [ca.hessian(ca.sum1(e), x)[0]])
+    kc = KernelCache(tmp_path, min_instructions=10)
+    assert kc.native(f) is f and kc.compiled == 0
+
+
+def test_compiling_stops_near_the_deadline(tmp_path):
+    import time
+
+    kc = KernelCache(tmp_path, min_instructions=10, deadline=time.perf_counter())
+    f = _kernel()
+    assert kc.native(f) is f and kc.compiled == 0 and not list(tmp_path.glob("*.so"))
