@@ -16,8 +16,9 @@ recurs in many rows and many factors. So each factor is compiled once into steps
 hash-consed nodes (a node is keyed by its builtin, its static arguments and its children's node
 ids; a leaf is a `VarInstance`): constant subtrees are folded when compiled, and one
 `max_violation` call evaluates every distinct node once, whichever factors share it. The steps call
-the same numeric kernels as the tree walk (`_reference_rows`, kept for the tests), in the same
-order per node, so the numbers are the same bit for bit. A factor also remembers its rows at its
+the same numeric kernels (`_NUMERIC`) as a plain walk of the body tree would, in the same order
+per node, so the numbers are the same bit for bit (`tests/nlp/evaluate_reference.py` is that walk,
+the tests' oracle). A factor also remembers its rows at its
 last few inputs (keyed by the exact bytes of its variables' values and the geometry object):
 a pure function, asked again for the same point by the next subgraph. Whatever a body cannot
 evaluate (an unknown primitive, sizes that do not fit, a missing value) raises `EvaluationError`.
@@ -105,71 +106,6 @@ def _const(e: Any) -> float:
     raise EvaluationError(f"expected a constant, got {e!r}")
 
 
-class _Interp:
-    def __init__(self, factor: FactorInstance, values: Mapping[VarInstance, Any],
-                 geometry: Geometry | None):
-        self.f, self.geometry = factor, geometry
-        try:
-            self.x = [np.asarray(values[v], float).reshape(-1) for v in factor.variables]
-        except KeyError as err:
-            raise EvaluationError(f"no value for variable {err.args[0]}") from None
-
-    def waypoint(self, e: Any, k: int) -> np.ndarray:
-        if not isinstance(e, Slot) or not self.f.variables[e.index].waypoints:
-            raise EvaluationError("waypoint of a non-trajectory")
-        v = self.f.variables[e.index]
-        pts = self.x[e.index].reshape(v.waypoints, v.point_dim)
-        return pts[k]
-
-    def body(self, e: Any) -> Body:
-        if isinstance(e, Obj):
-            return Body(e.name)
-        if isinstance(e, Call) and e.fn == "link":
-            return Body(e.args[0].name, link=e.args[1].value)
-        raise EvaluationError(f"not a body: {e!r}")
-
-    def ev(self, e: Any) -> np.ndarray:
-        if isinstance(e, Num):
-            return np.array([float(e.value)])
-        if isinstance(e, Slot):
-            return self.x[e.index]
-        if isinstance(e, Vec):
-            return np.concatenate([self.ev(i) for i in e.items])
-        if isinstance(e, Index):
-            i = int(_const(e.index))
-            if isinstance(e.base, Slot) and self.f.variables[e.base.index].waypoints \
-                    and e.stop is None:
-                return self.waypoint(e.base, i)
-            b = self.ev(e.base)
-            if e.stop is None:
-                return b[[i]]
-            return b[i:int(_const(e.stop))]
-        if isinstance(e, Call):
-            return np.atleast_1d(np.asarray(self.call(e), float)).reshape(-1)
-        raise EvaluationError(f"cannot evaluate {e!r}")
-
-    def call(self, e: Call):
-        fn, A = e.fn, e.args
-        if fn == "pow":
-            return self.ev(A[0]) ** _const(A[1])
-        if fn == "waypoint":
-            return self.waypoint(A[0], int(_const(A[1])))
-        if fn == "axis_se3":
-            return _rot(self.ev(A[0])[3:7])[:, int(_const(A[1]))]
-        if fn == "quat_axis":
-            return _rot(self.ev(A[0]))[:, int(_const(A[1]))]
-        g = self.geometry
-        if fn == "fk":
-            return g.fk_numeric(A[0].name, self.ev(A[1]), A[2].value, self.ev(A[3]))
-        if fn == "sdist":
-            return g.sdist_numeric(self.body(A[0]), self.ev(A[1]), self.body(A[2]), self.ev(A[3]))
-        if fn == "sdist2":
-            return g.sdist2_numeric(self.body(A[0]), self.ev(A[1]), self.body(A[2]),
-                                    self.ev(A[3]))
-        v = [self.ev(a) for a in A]
-        return _NUMERIC[fn](*v)
-
-
 def _compose_se2(a, b):
     return np.concatenate([a[:2] + _r2(a[2]) @ b[:2], [a[2] + b[2]]])
 
@@ -245,31 +181,13 @@ EVALUATED = frozenset(_NUMERIC) | {"pow", "waypoint", "axis_se3", "quat_axis", "
 
 
 # ---------------------------------------------------------------------------------------------
-# the reference: a direct walk of the body tree (what the compiled steps must reproduce)
-# ---------------------------------------------------------------------------------------------
-def _reference_rows(factor: FactorInstance, values: Mapping[VarInstance, Any],
-                    geometry: Geometry | None = None) -> list[tuple[str, float]]:
-    """`constraint_rows` by walking the body tree for every row (no compilation, no sharing).
-
-    Kept so that tests can compare the compiled evaluator against the plain interpretation."""
-    it = _Interp(factor, values, geometry)
-    rows: list[tuple[str, float]] = []
-    for c in factor.body:
-        lhs, rhs = it.ev(c.lhs), it.ev(c.rhs)
-        h = lhs - rhs if c.op != ">=" else rhs - lhs
-        kind = "eq" if c.op == "==" else "ineq"
-        rows += [(kind, float(v)) for v in np.atleast_1d(h)]
-    return rows
-
-
-# ---------------------------------------------------------------------------------------------
 # compiled evaluation
 # ---------------------------------------------------------------------------------------------
 _F64 = np.dtype(float)
 
 
 def _vec(r: Any) -> np.ndarray:
-    """The value of a node as a flat float vector (what `_Interp.ev` makes of a call's result)."""
+    """The value of a node as a flat float vector (what a tree walk makes of a call's result)."""
     if r.__class__ is np.ndarray and r.ndim == 1 and r.dtype == _F64:
         return r
     if r.__class__ is float:

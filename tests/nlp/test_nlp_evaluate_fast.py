@@ -1,6 +1,6 @@
 """The compiled numpy evaluator (`gnppdsl.nlp.evaluate`) against two references.
 
-1. The plain tree walk of the same module (`_reference_rows`): the compiled steps share nodes
+1. The plain tree walk (`tests/nlp/evaluate_reference.py`, `_reference_rows`): the compiled steps share nodes
    across rows and factors, fold constants, and remember a factor's rows at recent inputs; none
    of that may change a single bit of any row, on real graph-NLPs of the bundled examples
    (planar blocks, the Lab with Panda arms and trajectories, a mobile manipulator) at random
@@ -22,8 +22,9 @@ import pytest
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
 from gnppdsl.nlp import evaluate
-from gnppdsl.nlp.evaluate import (EvaluationError, _reference_rows, constraint_rows,
-                                  factor_violation, max_violation)
+from gnppdsl.nlp.evaluate import EvaluationError, constraint_rows, factor_violation, max_violation
+
+from evaluate_reference import _reference_rows
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = {
