@@ -73,6 +73,16 @@ def _request():
 _REQ = None
 
 
+def _place(T, R, p, M, identity: bool) -> None:
+    """`_placed` into an existing coal transform T (the single-shape fast path reuses its two)."""
+    if identity:
+        T.setRotation(R)
+        T.setTranslation(p)
+    else:
+        T.setRotation(R @ M[:3, :3])
+        T.setTranslation(R @ M[:3, 3] + p)
+
+
 def _placed(R, p, M, identity: bool):
     """coal transform of a shape placed at M in a body at (R, p); a scene object's identity
     placement skips the two products (R @ I = R, R @ 0 + p = p up to the sign of zeros)."""
@@ -210,21 +220,8 @@ class WitnessCallback(ca.Callback):
         if _REQ is None:
             _REQ = _request()
         sa, Ma, pla, Ta, sb, Mb, plb, Tb = self._single
-        # as `_placed`, with the transforms reused
-        RA = x[0:9].reshape(3, 3, order="F")
-        if pla[2]:
-            Ta.setRotation(RA)
-            Ta.setTranslation(x[9:12])
-        else:
-            Ta.setRotation(RA @ Ma[:3, :3])
-            Ta.setTranslation(RA @ Ma[:3, 3] + x[9:12])
-        RB = x[12:21].reshape(3, 3, order="F")
-        if plb[2]:
-            Tb.setRotation(RB)
-            Tb.setTranslation(x[21:24])
-        else:
-            Tb.setRotation(RB @ Mb[:3, :3])
-            Tb.setTranslation(RB @ Mb[:3, 3] + x[21:24])
+        _place(Ta, x[0:9].reshape(3, 3, order="F"), x[9:12], Ma, pla[2])
+        _place(Tb, x[12:21].reshape(3, 3, order="F"), x[21:24], Mb, plb[2])
         res = coal.DistanceResult()
         d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
         n = res.normal
