@@ -329,17 +329,22 @@ class Workspace:
         return M.Template(f"{module}.{d.name.value}", sig, body, frozenset(t.value for t in d.tags),
                           module, scope.used_prime, d.span)
 
+    def _parse_kind(self, path: str | Path, kind: str) -> ast.FileAst | None:
+        """The parsed file if it is a `kind` file ("domain" / "problem"), else None (reported)."""
+        f = self.parse(path)
+        if f is not None and f.header.kind != kind:
+            self.err(f.header.span, f"expected a {kind} file, but this is a {f.header.kind}",
+                     f"not-a-{kind}")
+            return None
+        return f
+
     # ------------------------------------------------------------------ domains
     def domain(self, path: str | Path) -> M.Domain | None:
         key = str(Path(path))
         if key not in self._domains:
             self._domains[key] = None
-            f = self.parse(key)
+            f = self._parse_kind(key, "domain")
             if f is None:
-                return None
-            if f.header.kind != "domain":
-                self.err(f.header.span, f"expected a domain file, but this is a {f.header.kind}",
-                         "not-a-domain")
                 return None
             # the domain resolver calls back into this workspace (modules, shared pieces):
             # imported here, where the cycle is, so the import direction stays one way
@@ -349,12 +354,8 @@ class Workspace:
         return self._domains[key]
 
     def problem(self, path: str | Path, domain_path: str | Path | None = None) -> M.Problem | None:
-        f = self.parse(path)
+        f = self._parse_kind(path, "problem")
         if f is None:
-            return None
-        if f.header.kind != "problem":
-            self.err(f.header.span, f"expected a problem file, but this is a {f.header.kind}",
-                     "not-a-problem")
             return None
         if domain_path is None:
             domain_path = self.find_domain(f)
