@@ -511,13 +511,13 @@ class _Checker:
         m = s
         if idle:
             const = [ref for ref in s.factor_refs if all(u in fixed for u in s.graph.neighbors(ref))]
-            if not self.violation([s.factor(ref) for ref in const], start) <= run.options.tolerance:
+            if not run.violation([s.factor(ref) for ref in const], start) <= run.options.tolerance:
                 return None
             m = s.subgraph(factors=[ref for ref in s.factor_refs if ref not in set(const)],
                            suffix="{moving}")
         if all(v in start for v in m.variables):
             point = {v: start[v] for v in m.variables}
-            worst = max(self.violation(m.factor_instances, point), bound_violation(m.variables, point))
+            worst = run.violation(m.factor_instances, point, m.variables)
             if worst <= run.options.tolerance:
                 run.stats.reused_solutions += 1
                 return FeasibilityResult(True, {**point, **idle}, {r: 0.0 for r in m.factor_refs}, worst,
@@ -534,21 +534,6 @@ class _Checker:
         if r.feasible:
             r.values.update({v: x for v, x in idle.items() if v not in r.values})
         return r
-
-    def violation(self, factors: Sequence[FactorInstance], point: dict) -> float:
-        """Largest violation of `factors` at `point` by the independent numpy evaluator (inf
-        when a primitive cannot be evaluated there: then the caller solves instead)."""
-        from gnppdsl.nlp.evaluate import max_violation
-
-        if not factors:
-            return 0.0
-        t0 = time.perf_counter()
-        try:
-            return max_violation(factors, point, self.run.compiled.geometry)[0]
-        except Exception:
-            return np.inf
-        finally:
-            self.run.stats.reuse_time += time.perf_counter() - t0
 
     def confirm(self, g: Any) -> bool:
         """Is the infeasible verdict on g final? A verdict from one start (Alg. 1's search runs
@@ -647,21 +632,13 @@ class _Checker:
         numpy), g is feasible (Definition 4.3) and those values are a solution. Typical cases:
         a time slice inside a feasible relaxation; a relaxation without the factors violated
         at the full graph's convergence point."""
-        from gnppdsl.nlp.evaluate import max_violation
         from gnppdsl.nlp.feasibility import FeasibilityResult
 
         for point in (self.values, *self.points):
             if not point or any(v not in point for v in g.variables):
                 continue
             values = {v: point[v] for v in g.variables}
-            t0 = time.perf_counter()
-            try:
-                worst, _ = max_violation(g.factor_instances, values, self.run.compiled.geometry)
-                worst = max(worst, bound_violation(g.variables, values))
-            except Exception:        # a primitive numpy cannot evaluate: solve instead
-                return None
-            finally:
-                self.run.stats.reuse_time += time.perf_counter() - t0
+            worst = self.run.violation(g.factor_instances, values, g.variables)
             if not worst <= self.run.options.tolerance:
                 continue
             self.run.stats.reused_solutions += 1
@@ -1139,17 +1116,27 @@ class _Run:
         of the contradiction; solving such a level only confirms it feasible. Sound either way:
         a skipped level gives no conflict and no verdict, the conflict then comes from a tighter
         level and is still confirmed by an NLP."""
-        from gnppdsl.nlp.evaluate import max_violation
-
         tol = self.options.screen_tolerance
         if tol <= 0 or any(v not in x_star for v in g_r.variables):
             return False
-        values = {v: x_star[v] for v in g_r.variables}
+        return self.violation(g_r.factor_instances, {v: x_star[v] for v in g_r.variables},
+                              g_r.variables) <= tol
+
+    def violation(self, factors: Sequence[FactorInstance], point: dict,
+                  variables: Iterable[VarInstance] = ()) -> float:
+        """Largest violation of `factors` (and of the bounds of `variables`) at `point` by the
+        independent numpy evaluator; inf when a primitive cannot be evaluated there (the
+        caller then solves instead). Counted in `stats.reuse_time`."""
+        from gnppdsl.nlp.evaluate import max_violation
+
+        t0 = time.perf_counter()
         try:
-            worst, _ = max_violation(g_r.factor_instances, values, self.compiled.geometry)
-        except Exception:          # a primitive numpy cannot evaluate: no screening
-            return False
-        return max(worst, bound_violation(g_r.variables, values)) <= tol
+            worst = max_violation(factors, point, self.compiled.geometry)[0] if factors else 0.0
+        except Exception:
+            return np.inf
+        finally:
+            self.stats.reuse_time += time.perf_counter() - t0
+        return max(worst, bound_violation(variables, point))
 
     def oneway(self) -> Result:
         while True:
