@@ -33,6 +33,15 @@ def _kernel(n: int = 6) -> ca.Function:
     return ca.Function("chain_hessian", [q, lam], [H])
 
 
+def _damaged_cache(directory):
+    """A cache holding one library for `_kernel()` whose bytes are then overwritten."""
+    f = _kernel()
+    KernelCache(directory, min_instructions=10).native(f)
+    (lib,) = directory.glob("*.so")
+    lib.write_bytes(b"not a shared library")
+    return f
+
+
 def _same(f, g, seed=0):
     rng = np.random.default_rng(seed)
     for _ in range(5):
@@ -73,10 +82,7 @@ def test_small_kernels_and_non_sx_functions_stay_in_the_virtual_machine(tmp_path
 
 @needs_cc
 def test_a_damaged_library_in_the_cache_is_not_used(tmp_path):
-    f = _kernel()
-    KernelCache(tmp_path, min_instructions=10).native(f)
-    (lib,) = tmp_path.glob("*.so")
-    lib.write_bytes(b"not a shared library")
+    f = _damaged_cache(tmp_path)
     false = jit.shutil.which("false")               # and it cannot be built again
     kc = KernelCache(tmp_path, min_instructions=10, cc=false or str(tmp_path / "no-cc"))
     assert kc.native(f) is f and kc.failed == 1 and kc.loaded == 0
@@ -157,7 +163,7 @@ def test_jit_setting_reaches_the_options_and_a_bad_value_is_located(tmp_path):
 
 
 @needs_cc
-def test_a_failing_compiler_leaves_the_function_and_no_files(tmp_path, monkeypatch):
+def test_a_failing_compiler_leaves_the_function_and_no_files(tmp_path):
     false = jit.shutil.which("false")
     if false is None:
         pytest.skip("no `false` program")
@@ -169,10 +175,7 @@ def test_a_failing_compiler_leaves_the_function_and_no_files(tmp_path, monkeypat
 
 @needs_cc
 def test_a_damaged_library_is_rebuilt_once(tmp_path):
-    f = _kernel()
-    KernelCache(tmp_path, min_instructions=10).native(f)
-    (lib,) = tmp_path.glob("*.so")
-    lib.write_bytes(b"garbage")
+    f = _damaged_cache(tmp_path)
     kc = KernelCache(tmp_path, min_instructions=10)
     g = kc.native(f)
     assert g is not f and kc.compiled == 1 and kc.failed == 0
