@@ -1159,10 +1159,14 @@ class _Run:
 
     # -- solutions -----------------------------------------------------------------------------
     def solution(self, plan: Any, graph: Any, values: dict) -> Result:
-        from gnppdsl.nlp.evaluate import max_violation
+        from gnppdsl.nlp.evaluate import EvaluationError, max_violation
 
         factors = graph.factor_instances
-        worst, arg = max_violation(factors, values, self.compiled.geometry)
+        try:
+            worst, arg = max_violation(factors, values, self.compiled.geometry)
+        except EvaluationError as err:    # a body the numpy re-check cannot evaluate
+            return self.result(SOLVER_FAILURE, f"the solution cannot be re-checked independently: {err}",
+                               plan=list(plan.names))
         bound_worst = bound_violation(graph.variables, values)
         worst = max(worst, bound_worst)
         self.stats.max_violation = worst
