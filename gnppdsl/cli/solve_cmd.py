@@ -10,7 +10,7 @@ import argparse
 import os
 import sys
 
-from gnppdsl.ir.model import SOLVER_ORDERS   # light: no casadi, no solver
+from gnppdsl.cli.solver_args import add_jit_argument, add_order_argument   # light imports
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,13 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="subset of 'trng' for gnpp/rlgp: t = binary search on time, r = relaxations, "
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
-    parser.add_argument("--order", choices=SOLVER_ORDERS, default=None,
-                        help="gnpp/rlgp: solve the full graph-NLP first and search for a conflict only "
-                             "when it fails (full_first, default), relaxations first (relaxed_first), or the "
-                             "small relaxations, then the full graph (staged)")
-    parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
-                        help="run the large derivative kernels as compiled C, cached on disk "
-                             "(default: the problem's solver setting `jit`, else off)")
+    add_order_argument(parser)
+    add_jit_argument(parser)
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
     parser.add_argument("--seed", type=int, default=None, help="random seed of the NLP starts")
     parser.add_argument("--db", default=None, metavar="PATH",

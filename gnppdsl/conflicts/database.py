@@ -160,10 +160,6 @@ class SubgraphDatabase:
             return subgraph
         return semantic_graph(subgraph, object_key=self.object_key)
 
-    def known_feasible(self, subgraph: Any) -> bool:
-        sg = self.graph_of(subgraph)
-        return any(contains(e.graph, sg) for e in self.feasible)
-
     def infeasible_inside(self, subgraph: Any) -> tuple[FactorInstance, ...] | None:
         """The factors of `subgraph` that form a known infeasible subgraph, or None.
 

@@ -323,10 +323,6 @@ class Template:
     two_step: bool = False
     span: Span | None = field(**_SPAN)
 
-    @property
-    def short_name(self) -> str:
-        return self.name.rsplit(".", 1)[-1]
-
 
 @dataclass(frozen=True)
 class SceneAttr:

@@ -199,11 +199,6 @@ class ReachabilityGraph:
         return n
 
     # ---- lazy edge checks ---------------------------------------------------------------------
-    def edge_configs(self, u: int, v: int) -> np.ndarray:
-        """The interior configurations an edge check visits."""
-        return self.checker.segment_configs(self.G.nodes[u]["q"], self.G.nodes[v]["q"],
-                                            self.settings.interpolation, self.settings.max_joint_step)
-
     def check_edge(self, u: int, v: int) -> bool:
         """Collision-check edge (u, v) now: mark it checked, or remove it (for good)."""
         self.stats.edge_checks += 1

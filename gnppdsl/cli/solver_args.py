@@ -1,0 +1,20 @@
+"""Command-line options that `gnpp solve` and `gnpp bench` share, written once so that their
+help and choices cannot drift apart. Light imports only (no casadi, no solver)."""
+from __future__ import annotations
+
+import argparse
+
+from gnppdsl.ir.model import SOLVER_ORDERS
+
+
+def add_order_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--order", choices=SOLVER_ORDERS, default=None,
+                        help="gnpp/rlgp: solve the full graph-NLP first and search for a conflict only "
+                             "when it fails (full_first, default), relaxations first (relaxed_first), or the "
+                             "small relaxations, then the full graph (staged)")
+
+
+def add_jit_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
+                        help="run the large derivative kernels as compiled C, cached on disk "
+                             "(default: the problem's solver setting `jit`, else off)")
