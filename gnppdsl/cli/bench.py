@@ -15,7 +15,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from gnppdsl.ir.model import SOLVER_ORDERS   # light: no casadi, no solver
+from gnppdsl.cli.solver_args import add_jit_argument, add_order_argument   # light imports
 from gnppdsl.solve.result import algorithm_title   # light as well
 
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
@@ -32,13 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=3, help="runs per algorithm and problem (seeds 0..N-1)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="seconds per run")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
-    parser.add_argument("--order", choices=SOLVER_ORDERS, default=None,
-                        help="gnpp: solve the full graph-NLP first and search for a conflict only when it "
-                             "fails (full_first, default), relaxations first (relaxed_first), or the small "
-                             "relaxations, then the full graph (staged)")
-    parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
-                        help="large derivative kernels as compiled C, cached on disk (default: the "
-                             "problems' solver setting `jit`, else off)")
+    add_order_argument(parser)
+    add_jit_argument(parser)
     parser.add_argument("--csv", default=None, metavar="FILE", help="write one row per run")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -179,6 +174,9 @@ def run(args: argparse.Namespace) -> int:
                     time_limit=args.time_limit, seed=seed, max_horizon=args.max_horizon,
                     order=args.order, jit=args.jit,
                 )
+                # every run compiles its own templates: runs share nothing, so no algorithm
+                # or seed is timed with the templates an earlier one compiled
+                compiled.compilers.clear()
                 try:
                     res = solve_compiled(compiled, options)
                 except UserError as err:

@@ -178,6 +178,10 @@ class WitnessCallback(ca.Callback):
     def eval(self, arg):
         return [ca.DM(self.model(np.array(arg[0], dtype=float).ravel()))]
 
+    def forget(self) -> None:
+        """Empty the memo (see `GeometryContext.forget_evaluations`)."""
+        self._memo.clear()
+
     def model(self, x: np.ndarray) -> np.ndarray:
         """The callback output at x (24 numbers), through the memo."""
         x = np.ascontiguousarray(x, dtype=np.float64)

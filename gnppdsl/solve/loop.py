@@ -26,7 +26,7 @@ from __future__ import annotations
 import hashlib
 import re
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
@@ -127,6 +127,25 @@ class Compiled:
     relaxations: tuple = ()           # gnppdsl.nlp.subgraph.Relaxation, loose -> tight
     fingerprint: str = ""
     object_key: Any = None            # object name -> geometry identity (see `object_keys`)
+    # jit on/off -> the BodyCompiler its solves share (see `body_compiler`)
+    compilers: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def body_compiler(self, jit_on: bool) -> Any:
+        """The template compiler (gnppdsl.nlp.casadi_expr.BodyCompiler) shared by every solve
+        of this problem in this process. Why shared: building a template's casadi Function and
+        its SX Jacobian and Hessian depends only on the factor body and the geometry, not on the
+        solve, and it is a large part of a robot solve (lab2, seed 1: 2.9 of 4.8 s CPU); a
+        second solve of the same problem (another seed, algorithm or time limit: `gnpp bench`,
+        library users) then compiles nothing. One compiler per jit setting, since the jit one
+        holds compiled kernels."""
+        hit = self.compilers.get(jit_on)
+        if hit is None:
+            from gnppdsl.nlp import jit
+            from gnppdsl.nlp.casadi_expr import BodyCompiler
+
+            hit = self.compilers[jit_on] = BodyCompiler(
+                self.geometry, kernels=jit.KernelCache() if jit_on else None)
+        return hit
 
     @property
     def name(self) -> str:
@@ -712,7 +731,6 @@ _DEADLINE_SOLVERS: dict[type, type] = {}
 class _Run:
     def __init__(self, compiled: Compiled, options: SolveOptions, progress: Progress | None):
         from gnppdsl.logic.planner import IncrementalPlanner
-        from gnppdsl.nlp.casadi_expr import BodyCompiler
 
         self.compiled, self.options, self.progress = compiled, options, progress
         self.task = compiled.task
@@ -730,8 +748,14 @@ class _Run:
         self.stats.logic_time += time.perf_counter() - t0
         from gnppdsl.nlp import jit
 
-        self.kernels = jit.KernelCache(deadline=self.deadline) if jit.enabled(options.jit) else None
-        self.compiler = BodyCompiler(compiled.geometry, kernels=self.kernels)
+        if compiled.geometry is not None:      # a solve starts with no remembered evaluations
+            compiled.geometry.forget_evaluations()
+        self.compiler = compiled.body_compiler(jit.enabled(options.jit))
+        self.kernels = self.compiler.kernels
+        self.kernel_base = (0, 0.0, 0)          # kernels compiled, compile time, failed before this run
+        if self.kernels is not None:
+            self.kernels.deadline = self.deadline
+            self.kernel_base = (self.kernels.compiled, self.kernels.compile_time, self.kernels.failed)
         self.solvers: list[Any] = []      # every FeasibilitySolver of this run (ipopt runs, time)
         self.nlp_calls = 0                # NLPs solved through _Checker.solve
         self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
@@ -887,9 +911,9 @@ class _Run:
         self.stats.cpu_time = time.process_time() - self.cpu_start + _children_cpu() - self.children_cpu_start
         if self.kernels is not None:
             self.stats.kernels_native = self.kernels.loaded
-            self.stats.kernels_compiled = self.kernels.compiled
-            self.stats.kernel_compile_time = self.kernels.compile_time
-            self.stats.kernels_failed = self.kernels.failed
+            self.stats.kernels_compiled = self.kernels.compiled - self.kernel_base[0]
+            self.stats.kernel_compile_time = self.kernels.compile_time - self.kernel_base[1]
+            self.stats.kernels_failed = self.kernels.failed - self.kernel_base[2]
             self.stats.kernel_error = self.kernels.last_error
         # NLPs = feasibility problems solved (each may take several ipopt runs: restarts and
         # a polish before an infeasible verdict, counted in ipopt_runs); time of all of them
