@@ -46,9 +46,11 @@ def main(argv=None) -> int:
                          "full_first 37 s; lab1: relaxed_first timed out (trajectories warm-started "
                          "from a relaxation without time consistency)")
     ap.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
-                    help="large derivative kernels as compiled C, cached on disk (gnppdsl.nlp.jit; "
-                         "default: the domain's setting). The first run on a machine compiles them: "
-                         "its CPU time includes the C compiler's")
+                    help="--jit: large derivative kernels compiled to C during the solve, cached on "
+                         "disk (the first run on a machine compiles them: its CPU time includes the C "
+                         "compiler's); --no-jit: never. Default: the domain's setting, else compiled by "
+                         "background workers (not in the CPU times) and used once ready, so the times of "
+                         "a first run on a machine drift down as kernels arrive")
     ap.add_argument("--fresh-templates", action="store_true",
                     help="compile the factor templates again for every seed (default: compiled by "
                          "the first seed, reused by the later ones, as in one process solving a "
@@ -58,6 +60,7 @@ def main(argv=None) -> int:
                          "conflict it returns (SolveOptions.lazy_search)")
     args = ap.parse_args(argv)
 
+    from gnppdsl.nlp import jit
     from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
     from gnppdsl.solve.verify_solution import verify_solution
 
@@ -95,7 +98,7 @@ def main(argv=None) -> int:
 
     base = SolveOptions.from_settings(comp.problem.settings, order=args.order, jit=args.jit)
     print(f"Lab benchmark: {args.seeds} seeds, time limit {args.time_limit:g} s, order {base.order}, "
-          f"jit {'on' if base.jit else 'off'}, solutions verified with pinocchio + coal (CPU s of "
+          f"jit {jit.mode(base.jit)}, solutions verified with pinocchio + coal (CPU s of "
           f"this process and its C compiler runs; paper: single core); templates "
           + ("compiled for every seed" if args.fresh_templates else
              "compiled by the first seed and reused ('first': its CPU s)")

@@ -14,3 +14,9 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+# Solves in the tests never start background kernel compilers (gnppdsl.nlp.jit's default mode):
+# they would write to the user's cache and compete with the tests for the CPU. The jit tests
+# build their KernelCaches explicitly, in temporary directories.
+os.environ.setdefault("GNPP_JIT", "0")

@@ -16,5 +16,7 @@ def add_order_argument(parser: argparse.ArgumentParser) -> None:
 
 def add_jit_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
-                        help="run the large derivative kernels as compiled C, cached on disk "
-                             "(default: the problem's solver setting `jit`, else off)")
+                        help="--jit: compile the large derivative kernels to C during this solve "
+                             "(cached on disk); --no-jit: never. Default: the problem's solver setting "
+                             "`jit`, else kernels missing from the cache are compiled in the background "
+                             "for later solves")

@@ -432,7 +432,8 @@ class SolverSettings:
     database    path of the subgraph database (SQLite) or None for in-memory
     order       gnpp: when the relaxations are solved relative to the full graph-NLP
                 ("full_first", "relaxed_first", "staged"; None: the solver's default)
-    jit         run large derivative kernels as compiled C (cached on disk; `gnppdsl.nlp.jit`)
+    jit         large derivative kernels as compiled C (cached on disk; `gnppdsl.nlp.jit`): true =
+                compile during the solve, false = never, None = in the background for later solves
     """
 
     algorithm: str = "gnpp"

@@ -18,18 +18,31 @@ error, a library that does not reproduce the virtual machine's numbers bit for b
 fingerprint's probe points) leaves the Function as it was: a speed option, never a change of
 results.
 
-Turned on by the solver setting `jit = true` (`SolveOptions.jit`, `gnpp solve --jit`);
-`GNPP_JIT=0` turns it off whatever the setting says, `GNPP_JIT_CACHE` sets the cache directory
-(default `~/.cache/gnppdsl/jit`; it must be writable: a clear error otherwise), `GNPP_CC` the
+Three modes (`mode`), from the solver setting `jit` (`SolveOptions.jit`, `gnpp solve
+--jit/--no-jit`):
+- "background" (setting unset, the default): kernels already in the cache are loaded; a missing
+  one is generated as C at once and handed to a detached, niced worker process
+  (`gnppdsl.nlp.jit_worker`, one compile at a time per cache) while this solve runs it in the
+  virtual machine. The first solve on a machine is not slowed down by compiling (its workers'
+  CPU is not in its `cpu_time`: they may outlive it), later solves load the libraries.
+  Without a compiler or a writable cache it quietly does nothing.
+- "now" (`jit = true`, `--jit`): missing kernels are compiled during the solve (the first
+  solve of the Lab compiles for ~1 min; its CPU time includes the compiler's); an unwritable
+  cache is a clear error. What the benchmarks use to measure with every kernel compiled.
+- "off" (`jit = false`, `--no-jit`, or `GNPP_JIT=0` whatever the setting says).
+`GNPP_JIT_CACHE` sets the cache directory (default `~/.cache/gnppdsl/jit`), `GNPP_CC` the
 compiler (`cc`). The cache has no size limit: each scene and domain adds its kernels (~30-60
-files of 100-400 kB for the Lab); delete the directory to reclaim the space.
+files of 100-400 kB for the Lab); delete the directory to reclaim the space (and to retry
+kernels whose background compile failed: they are marked `<key>.failed`).
 """
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -43,11 +56,40 @@ MIN_INSTRUCTIONS = 5000
 FLAGS = ("-O0", "-shared", "-fPIC")
 COMPILE_MARGIN = 5.0       # seconds before the solve's deadline after which nothing is compiled
 COMPILE_TIMEOUT = 120.0    # seconds one compiler run may take
+WORKER_GRACE = 2.0         # seconds a started worker has to take the compile lock
+STALE_JOB = 900.0          # seconds after which a queued job of another process counts as lost
+MODES = ("off", "now", "background")
 
 
-def enabled(requested: bool) -> bool:
-    """The `jit` setting, unless the environment says GNPP_JIT=0."""
-    return bool(requested) and os.environ.get("GNPP_JIT", "1") != "0"
+def mode(requested: bool | None) -> str:
+    """The mode of the `jit` setting: True -> "now", False -> "off", None (unset) ->
+    "background"; "off" whatever the setting says when the environment has GNPP_JIT=0."""
+    if os.environ.get("GNPP_JIT", "1") == "0" or requested is False:
+        return "off"
+    return "now" if requested else "background"
+
+
+def enabled(requested: bool | None) -> bool:
+    """Whether the setting asks for compiled kernels at all (see `mode`)."""
+    return mode(requested) != "off"
+
+
+def kernel_cache(jit_mode: str) -> "KernelCache | None":
+    """The KernelCache of a mode, or None for "off". In the default background mode a cache
+    that cannot be written, or a machine without a compiler, just means no kernels (the user
+    did not ask for them); "now" (asked for explicitly) says why it cannot."""
+    if jit_mode not in MODES:
+        raise ValueError(f"jit mode {jit_mode!r} (use one of {', '.join(MODES)})")
+    if jit_mode == "off":
+        return None
+    if jit_mode == "background":
+        if find_compiler() is None:
+            return None
+        try:
+            return KernelCache(background=True)
+        except UserError:
+            return None
+    return KernelCache()
 
 
 def cache_dir() -> Path:
@@ -81,19 +123,25 @@ class KernelCache:
     """Replaces large SX Functions by compiled ones; counts what it did (solve statistics)."""
 
     def __init__(self, directory: Path | None = None, min_instructions: int = MIN_INSTRUCTIONS,
-                 cc: str | None = None, deadline: float = float("inf")):
+                 cc: str | None = None, deadline: float = float("inf"), background: bool = False):
         """`deadline` (time.perf_counter clock): no kernel is compiled when less than
-        `COMPILE_MARGIN` seconds are left (libraries already in the cache are still used)."""
+        `COMPILE_MARGIN` seconds are left (libraries already in the cache are still used).
+        `background`: missing kernels go to a worker process instead (see the module doc)."""
         self.directory = writable_cache(Path(directory) if directory is not None else cache_dir())
         self.deadline = deadline
+        self.background = background
         self.min_instructions = min_instructions
         self.cc = cc if cc is not None else find_compiler()
         self.compiled = 0          # libraries built by this process
+        self.queued = 0            # kernels handed to background workers by this process
         self.loaded = 0            # kernels in use as native code
         self.failed = 0            # kernels left to the virtual machine after an error
-        self.compile_time = 0.0    # seconds spent generating and compiling C
+        self.compile_time = 0.0    # seconds spent generating and compiling C (in this process)
         self.last_error = ""
         self._memo: dict[str, ca.Function] = {}
+        self._pending: dict[str, Path] = {}    # key -> library a worker is (or was) building
+        self._workers: list[subprocess.Popen] = []
+        self._worker_started = -math.inf      # time.perf_counter() of the last worker start
 
     def native(self, f: ca.Function) -> ca.Function:
         """A compiled Function with f's inputs, outputs and values, or f itself."""
@@ -110,12 +158,23 @@ class KernelCache:
         if hit is not None:
             return hit
         lib = self.directory / f"{key}.so"
+        if self.background and not lib.exists():
+            marker = lib.with_suffix(".failed")
+            if marker.exists():
+                self.failed += 1           # a worker could not compile it: do not try again
+                try:
+                    self.last_error = marker.read_text(errors="replace")[-500:]
+                except OSError:
+                    pass
+            else:
+                self._enqueue(f, key, lib)
+            return f
         g = None
         for attempt in range(2):   # a damaged or stale library is removed and built again once
             try:
                 if not lib.exists():
-                    if time.perf_counter() > self.deadline - COMPILE_MARGIN:
-                        return f
+                    if self.background or time.perf_counter() > self.deadline - COMPILE_MARGIN:
+                        return f           # (background: a damaged library is not rebuilt here)
                     self._build(f, key, lib)
                 g = ca.external(_symbol(key), str(lib))
                 if self.values(g, self.probes(f)) != expected:
@@ -134,6 +193,75 @@ class KernelCache:
         self.loaded += 1
         self._memo[key] = g
         return g
+
+    def newly_ready(self) -> bool:
+        """True, once, when every kernel this process queued has been compiled (or has failed)
+        and at least one of them is a library now: a caller holding Functions built before
+        may rebuild them to use the libraries. Why all and not each: rebuilding the templates
+        costs seconds, so it is done once per batch. Also restarts the worker if the queue
+        still has jobs and no worker holds the lock (one that exited as jobs arrived)."""
+        if not self._pending:
+            return False
+        waiting = {k: lib for k, lib in self._pending.items()
+                   if not lib.exists() and not lib.with_suffix(".failed").exists()}
+        if waiting:
+            self._start_worker()
+            return False
+        ready = any(lib.exists() for lib in self._pending.values())
+        self._pending.clear()
+        return ready
+
+    def _enqueue(self, f: ca.Function, key: str, lib: Path) -> None:
+        """Queue f for the background worker (`gnppdsl.nlp.jit_worker`): the Function saved
+        in a job directory (written under a temporary name, then renamed), and a worker
+        started unless one holds the cache's lock. Not twice in one process; not while a job
+        for it (queued by another process) is waiting."""
+        if key in self._pending:
+            return
+        root = self.directory / "jobs"
+        job, tmp = root / key, root / f"{key}.tmp"
+        t0 = time.perf_counter()
+        try:
+            if job.exists() and time.time() - job.stat().st_mtime < STALE_JOB:
+                self._pending[key] = lib           # queued by another process: wait for it
+                return
+            shutil.rmtree(job, ignore_errors=True)
+            shutil.rmtree(tmp, ignore_errors=True)
+            tmp.mkdir(parents=True)
+            f.save(str(tmp / "kernel.casadi"))
+            os.replace(tmp, job)
+            self._pending[key] = lib
+            self.queued += 1
+            self._start_worker()
+        except Exception as err:                   # no job: the kernel stays in the VM
+            shutil.rmtree(tmp, ignore_errors=True)
+            self.failed += 1
+            self.last_error = str(err)[-500:]
+        finally:
+            self.compile_time += time.perf_counter() - t0
+
+    def _start_worker(self) -> None:
+        """Start a worker unless one holds the lock or this process started one in the last
+        `WORKER_GRACE` seconds (it may not have taken the lock yet)."""
+        self._workers = [w for w in self._workers if w.poll() is None]      # reap the detached parents
+        now = time.perf_counter()
+        if now - self._worker_started < WORKER_GRACE or _locked(self.directory):
+            return
+        self._worker_started = now
+        self._workers.append(subprocess.Popen(
+            [sys.executable, "-m", "gnppdsl.nlp.jit_worker", str(self.directory), self.cc, *FLAGS],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            close_fds=True))
+
+    @staticmethod
+    def generate(f: ca.Function, key: str, directory: Path) -> Path:
+        """f as `<symbol>.c` in `directory` (one exported function named after the key)."""
+        sym = _symbol(key)
+        named = ca.Function(sym, f.sx_in(), f.call(f.sx_in()), f.name_in(), f.name_out())
+        cg = ca.CodeGenerator(sym + ".c", {"with_header": False})
+        cg.add(named)
+        cg.generate(str(directory) + os.sep)
+        return directory / (sym + ".c")
 
     @staticmethod
     def probes(f: ca.Function) -> list[list[np.ndarray]]:
@@ -174,13 +302,9 @@ class KernelCache:
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(prefix="gnpp_jit_") as tmp:
-                sym = _symbol(key)
-                named = ca.Function(sym, f.sx_in(), f.call(f.sx_in()), f.name_in(), f.name_out())
-                cg = ca.CodeGenerator(sym + ".c", {"with_header": False})
-                cg.add(named)
-                cg.generate(tmp + os.sep)
-                out = Path(tmp) / (sym + ".so")
-                proc = subprocess.run([self.cc, *FLAGS, "-o", str(out), str(Path(tmp) / (sym + ".c"))],
+                src = self.generate(f, key, Path(tmp))
+                out = src.with_suffix(".so")
+                proc = subprocess.run([self.cc, *FLAGS, "-o", str(out), str(src)],
                                       capture_output=True, text=True, timeout=COMPILE_TIMEOUT)
                 if proc.returncode != 0:
                     raise RuntimeError(f"{self.cc} failed: {proc.stderr[-1000:]}")
@@ -194,6 +318,22 @@ class KernelCache:
             self.compiled += 1
         finally:
             self.compile_time += time.perf_counter() - t0
+
+
+def _locked(directory: Path) -> bool:
+    """True when a background worker holds the cache's compile lock."""
+    import fcntl
+
+    try:
+        with open(directory / ".compile.lock", "a") as fh:
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                return True
+            fcntl.flock(fh, fcntl.LOCK_UN)
+            return False
+    except OSError:
+        return False
 
 
 def _symbol(key: str) -> str:

@@ -79,7 +79,9 @@ class SolveOptions:
                                      # = relaxations loose -> tight before the full graph;
                                      # "staged" = the small relaxations first, then the full
                                      # graph, the others only to find a conflict (see `evaluate`)
-    jit: bool = False                # large derivative kernels as compiled C (gnppdsl.nlp.jit)
+    jit: bool | None = None          # large derivative kernels as compiled C (gnppdsl.nlp.jit):
+                                     # None: compiled in the background for later solves, True:
+                                     # compiled now, False: never (`jit.mode`)
     lazy_search: bool = False        # gnpp: Alg. 1's search solves each small subgraph from one
                                      # start, only the conflict gets the restarts (`_Checker.confirm`);
                                      # off by default: lab3 -15 % CPU, but lab5 seed 0 took 4x (a
@@ -127,24 +129,28 @@ class Compiled:
     relaxations: tuple = ()           # gnppdsl.nlp.subgraph.Relaxation, loose -> tight
     fingerprint: str = ""
     object_key: Any = None            # object name -> geometry identity (see `object_keys`)
-    # jit on/off -> the BodyCompiler its solves share (see `body_compiler`)
+    # jit mode -> the BodyCompiler its solves share (see `body_compiler`)
     compilers: dict = field(default_factory=dict, repr=False, compare=False)
 
-    def body_compiler(self, jit_on: bool) -> Any:
+    def body_compiler(self, jit_mode: str) -> Any:
         """The template compiler (gnppdsl.nlp.casadi_expr.BodyCompiler) shared by every solve
         of this problem in this process. Why shared: building a template's casadi Function and
         its SX Jacobian and Hessian depends only on the factor body and the geometry, not on the
         solve, and it is a large part of a robot solve (lab2, seed 1: 2.9 of 4.8 s CPU); a
         second solve of the same problem (another seed, algorithm or time limit: `gnpp bench`,
-        library users) then compiles nothing. One compiler per jit setting, since the jit one
-        holds compiled kernels."""
-        hit = self.compilers.get(jit_on)
+        library users) then compiles nothing. One compiler per jit mode (`gnppdsl.nlp.jit`),
+        since those with kernels hold compiled code; in the background mode a compiler is built
+        again once kernels it queued have been compiled, so that the next solve uses them."""
+        hit = self.compilers.get(jit_mode)
+        if hit is not None and hit.kernels is not None and hit.kernels.newly_ready():
+            hit = None
         if hit is None:
             from gnppdsl.nlp import jit
             from gnppdsl.nlp.casadi_expr import BodyCompiler
 
-            hit = self.compilers[jit_on] = BodyCompiler(
-                self.geometry, kernels=jit.KernelCache() if jit_on else None)
+            old = self.compilers.get(jit_mode)
+            kernels = old.kernels if old is not None else jit.kernel_cache(jit_mode)
+            hit = self.compilers[jit_mode] = BodyCompiler(self.geometry, kernels=kernels)
         return hit
 
     @property
@@ -750,12 +756,13 @@ class _Run:
 
         if compiled.geometry is not None:      # a solve starts with no remembered evaluations
             compiled.geometry.forget_evaluations()
-        self.compiler = compiled.body_compiler(jit.enabled(options.jit))
+        self.compiler = compiled.body_compiler(jit.mode(options.jit))
         self.kernels = self.compiler.kernels
-        self.kernel_base = (0, 0.0, 0)          # kernels compiled, compile time, failed before this run
+        self.kernel_base = (0, 0.0, 0, 0)   # kernels compiled, compile time, failed, queued before this run
         if self.kernels is not None:
             self.kernels.deadline = self.deadline
-            self.kernel_base = (self.kernels.compiled, self.kernels.compile_time, self.kernels.failed)
+            self.kernel_base = (self.kernels.compiled, self.kernels.compile_time, self.kernels.failed,
+                                self.kernels.queued)
         self.solvers: list[Any] = []      # every FeasibilitySolver of this run (ipopt runs, time)
         self.nlp_calls = 0                # NLPs solved through _Checker.solve
         self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
@@ -914,6 +921,7 @@ class _Run:
             self.stats.kernels_compiled = self.kernels.compiled - self.kernel_base[0]
             self.stats.kernel_compile_time = self.kernels.compile_time - self.kernel_base[1]
             self.stats.kernels_failed = self.kernels.failed - self.kernel_base[2]
+            self.stats.kernels_queued = self.kernels.queued - self.kernel_base[3]
             self.stats.kernel_error = self.kernels.last_error
         # NLPs = feasibility problems solved (each may take several ipopt runs: restarts and
         # a polish before an infeasible verdict, counted in ipopt_runs); time of all of them

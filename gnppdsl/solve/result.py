@@ -95,6 +95,7 @@ class Stats:
     kernels_compiled: int = 0         # ... of which compiled by this solve (the rest: from the cache)
     kernel_compile_time: float = 0.0  # seconds generating and compiling them (C compiler included)
     kernels_failed: int = 0           # kernels left to the virtual machine after an error
+    kernels_queued: int = 0           # kernels handed to background compile workers (later solves load them)
     kernel_error: str = ""            # the last such error
     N0: int | None = None             # length of the first logical plan
     N: int | None = None              # length of the returned solution
@@ -186,6 +187,9 @@ class Result:
         if s.kernels_failed:
             lines.append(f"jit: {s.kernels_failed} kernels not compiled, run by casadi's virtual machine "
                          f"(last error: {s.kernel_error.strip().splitlines()[-1][:200] if s.kernel_error.strip() else '?'})")
+        if s.kernels_queued:
+            lines.append(f"jit: {s.kernels_queued} derivative kernels are being compiled in the background "
+                         f"(this solve ran them in casadi's virtual machine; later solves load them)")
         if s.kernels_native:
             lines.append(f"jit: {s.kernels_native} derivative kernels as compiled C ({s.kernels_compiled} "
                          f"compiled now, {s.kernel_compile_time:.1f} s; the others from the cache)")

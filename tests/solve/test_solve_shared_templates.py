@@ -2,7 +2,8 @@
 a second solve compiles nothing and returns the same plan and the same continuous values as
 the first (the cache changes cost, not results), and its solution passes the independent
 re-check. `gnpp bench` clears the cache before every run so that no run is timed with
-templates an earlier one compiled."""
+templates an earlier one compiled. In jit's background mode the shared compiler is built again
+once the kernels it queued are ready."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,7 +22,7 @@ def test_a_second_solve_reuses_every_template_and_returns_the_same_solution():
     compiled = occupied_problem(waypoints=8)
     first = solve_compiled(compiled, _options())
     assert first.solved and first.stats.N == 4, first.message
-    compiler = compiled.body_compiler(False)
+    compiler = compiled.body_compiler("off")
     built = compiler.compiled
     assert built > 0
 
@@ -57,3 +58,24 @@ def test_gnpp_bench_compiles_templates_for_every_run(monkeypatch):
                "--seeds", "2", "--time-limit", "30", "--quiet"])
     assert rc == 0
     assert sizes == [0, 0, 0, 0]
+
+
+def test_the_shared_template_compiler_is_rebuilt_once_the_queued_kernels_are_ready():
+    from solve_toy import occupied_problem
+
+    from gnppdsl.nlp.casadi_expr import BodyCompiler
+
+    class Kernels:                                   # what body_compiler asks a KernelCache
+        native = staticmethod(lambda f: f)
+        ready = [False, True, False]
+
+        def newly_ready(self):
+            return self.ready.pop(0)
+
+    compiled = occupied_problem(waypoints=4)
+    kernels = Kernels()
+    first = compiled.compilers["background"] = BodyCompiler(compiled.geometry, kernels=kernels)
+    assert compiled.body_compiler("background") is first          # nothing ready yet
+    second = compiled.body_compiler("background")                 # ready: built again
+    assert second is not first and second.kernels is kernels
+    assert compiled.body_compiler("background") is second

@@ -1,0 +1,98 @@
+"""The default jit mode (`gnppdsl.nlp.jit`, "background"): a missing kernel is queued for a
+detached worker (`gnppdsl.nlp.jit_worker`) and the solve keeps casadi's Function; a later
+cache loads the compiled library, which gives the same numbers bit for bit; a kernel whose
+compile failed is marked and not queued again; a job another process queued is not queued
+twice; the modes of the setting (the rebuild of the shared template compiler once the queued
+kernels are ready: tests/solve/test_solve_shared_templates.py). Skipped where there is no C
+compiler."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from gnppdsl.errors import UserError
+from gnppdsl.nlp import jit
+from gnppdsl.nlp.jit import KernelCache
+from test_nlp_jit import _kernel, _same
+
+needs_cc = pytest.mark.skipif(jit.find_compiler() is None, reason="no C compiler")
+
+
+def _wait_for(path: Path, timeout: float = 180.0) -> None:
+    t0 = time.monotonic()
+    while not path.exists():
+        if time.monotonic() - t0 > timeout:
+            raise AssertionError(f"no {path.name} after {timeout:.0f} s")
+        time.sleep(0.1)
+
+
+@needs_cc
+def test_a_queued_kernel_is_compiled_in_the_background_and_loaded_by_a_later_cache(tmp_path):
+    f = _kernel()
+    kc = KernelCache(tmp_path, min_instructions=10, background=True)
+    t0 = time.perf_counter()
+    assert kc.native(f) is f                         # this solve keeps the VM Function
+    assert time.perf_counter() - t0 < 5.0            # (queued, not compiled: well under a compile)
+    assert kc.native(f) is f and kc.queued == 1 and kc.compiled == 0
+    key, _ = KernelCache.key(f)
+    _wait_for(tmp_path / f"{key}.so")
+    t0 = time.monotonic()
+    while list((tmp_path / "jobs").iterdir()) and time.monotonic() - t0 < 30:
+        time.sleep(0.1)                              # the worker removes the job after the move
+    assert not list((tmp_path / "jobs").iterdir())
+    assert kc.newly_ready() and not kc.newly_ready()     # reported once
+    later = KernelCache(tmp_path, min_instructions=10, background=True)
+    g = later.native(f)
+    assert g is not f and later.loaded == 1 and later.queued == 0
+    _same(f, g)
+
+
+@needs_cc
+def test_a_failed_background_compile_is_marked_and_not_queued_again(tmp_path):
+    false = jit.shutil.which("false")
+    if false is None:
+        pytest.skip("no `false` program")
+    f = _kernel()
+    kc = KernelCache(tmp_path, min_instructions=10, cc=false, background=True)
+    assert kc.native(f) is f and kc.queued == 1
+    key, _ = KernelCache.key(f)
+    _wait_for(tmp_path / f"{key}.failed")
+    assert not (tmp_path / f"{key}.so").exists()
+    assert not kc.newly_ready()                      # failed: nothing to rebuild for
+    again = KernelCache(tmp_path, min_instructions=10, background=True)
+    assert again.native(f) is f and again.queued == 0 and again.failed == 1
+    assert again.last_error                          # the compiler's message
+
+
+def test_a_job_queued_by_another_process_is_not_queued_twice(tmp_path):
+    f = _kernel()
+    key, _ = KernelCache.key(f)
+    job = tmp_path / "jobs" / key
+    job.mkdir(parents=True)
+    (job / "kernel.casadi").write_text("queued elsewhere")
+    kc = KernelCache(tmp_path, min_instructions=10, cc="cc", background=True)
+    kc._worker_started = time.perf_counter()         # no worker: this test only looks at the queue
+    assert kc.native(f) is f and kc.queued == 0
+    assert (job / "kernel.casadi").read_text() == "queued elsewhere"
+
+
+def test_the_modes_of_the_setting(tmp_path, monkeypatch):
+    monkeypatch.delenv("GNPP_JIT", raising=False)
+    assert (jit.mode(None), jit.mode(True), jit.mode(False)) == ("background", "now", "off")
+    monkeypatch.setenv("GNPP_JIT", "0")
+    assert jit.mode(None) == jit.mode(True) == "off" and jit.kernel_cache("off") is None
+    monkeypatch.delenv("GNPP_JIT")
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    monkeypatch.setenv("GNPP_JIT_CACHE", str(blocker / "cache"))
+    monkeypatch.setenv("GNPP_CC", jit.shutil.which("true") or "sh")
+    assert jit.kernel_cache("background") is None    # not asked for: quietly no kernels
+    with pytest.raises(UserError, match="not writable"):
+        jit.kernel_cache("now")                      # asked for: says why not
+    monkeypatch.setenv("GNPP_JIT_CACHE", str(tmp_path / "ok"))
+    kc = jit.kernel_cache("background")
+    assert kc is not None and kc.background
+    monkeypatch.setenv("GNPP_CC", str(tmp_path / "no-such-cc"))
+    assert jit.kernel_cache("background") is None    # no compiler: no kernels
