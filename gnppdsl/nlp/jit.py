@@ -83,8 +83,8 @@ def kernel_cache(jit_mode: str) -> "KernelCache | None":
     if jit_mode == "off":
         return None
     if jit_mode == "background":
-        if find_compiler() is None:
-            return None
+        if find_compiler() is None or not hasattr(os, "fork"):
+            return None                    # the worker forks and locks with fcntl (POSIX)
         try:
             return KernelCache(background=True)
         except UserError:
