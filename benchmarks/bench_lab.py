@@ -48,9 +48,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
                     help="--jit: large derivative kernels compiled to C during the solve, cached on "
                          "disk (the first run on a machine compiles them: its CPU time includes the C "
-                         "compiler's); --no-jit: never. Default: the domain's setting, else compiled by "
-                         "background workers (not in the CPU times) and used once ready, so the times of "
-                         "a first run on a machine drift down as kernels arrive")
+                         "compiler's; with a warm cache nothing is compiled); default off, so that no "
+                         "run's time depends on what background compilers have finished")
     ap.add_argument("--fresh-templates", action="store_true",
                     help="compile the factor templates again for every seed (default: compiled by "
                          "the first seed, reused by the later ones, as in one process solving a "
@@ -73,7 +72,8 @@ def main(argv=None) -> int:
         runs = []
         for seed in range(args.seeds):
             opts = SolveOptions.from_settings(comp.problem.settings, seed=seed, time_limit=args.time_limit,
-                                              order=args.order, jit=args.jit)
+                                              order=args.order,
+                                              jit=args.jit if args.jit is not None else False)
             if args.lazy_search:
                 opts = replace(opts, lazy_search=True)
             if args.fresh_templates:
@@ -96,7 +96,8 @@ def main(argv=None) -> int:
                   file=sys.stderr, flush=True)
         rows.append((name, spec, runs))
 
-    base = SolveOptions.from_settings(comp.problem.settings, order=args.order, jit=args.jit)
+    base = SolveOptions.from_settings(comp.problem.settings, order=args.order,
+                                      jit=args.jit if args.jit is not None else False)
     print(f"Lab benchmark: {args.seeds} seeds, time limit {args.time_limit:g} s, order {base.order}, "
           f"jit {jit.mode(base.jit)}, solutions verified with pinocchio + coal (CPU s of "
           f"this process and its C compiler runs; paper: single core); templates "

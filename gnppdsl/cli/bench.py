@@ -21,7 +21,8 @@ from gnppdsl.solve.result import algorithm_title   # light as well
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
 CSV_FIELDS = ("problem", "algorithm", "seed", "status", "solved", "nlp_solves", "ipopt_runs", "nlp_time",
               "logic_time", "total_time", "cpu_time", "plans", "conflicts", "db_feasible_hits",
-              "db_infeasible_hits", "reused_solutions", "N0", "N", "max_violation", "message")
+              "db_infeasible_hits", "reused_solutions", "N0", "N", "max_violation", "kernels_native",
+              "kernels_compiled", "message")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,7 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="seconds per run")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
     add_order_argument(parser)
-    add_jit_argument(parser)
+    add_jit_argument(parser, default="off (no run's time depends on what background compilers have "
+                                     "finished; --jit counts each compile in the run that needs it)")
     parser.add_argument("--csv", default=None, metavar="FILE", help="write one row per run")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -172,10 +174,11 @@ def run(args: argparse.Namespace) -> int:
                 options = SolveOptions.from_settings(
                     compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
                     time_limit=args.time_limit, seed=seed, max_horizon=args.max_horizon,
-                    order=args.order, jit=args.jit,
+                    order=args.order, jit=args.jit if args.jit is not None else False,
                 )
                 # every run compiles its own templates: runs share nothing, so no algorithm
-                # or seed is timed with the templates an earlier one compiled
+                # or seed is timed with the templates an earlier one compiled (and jit is off
+                # unless --jit: no run's time depends on background compiles)
                 compiled.compilers.clear()
                 try:
                     res = solve_compiled(compiled, options)
@@ -186,7 +189,8 @@ def run(args: argparse.Namespace) -> int:
                                  "logic_time": 0.0, "total_time": 0.0, "cpu_time": 0.0, "plans": 0,
                                  "conflicts": 0, "db_feasible_hits": 0, "db_infeasible_hits": 0,
                                  "reused_solutions": 0, "N0": None,
-                                 "N": None, "max_violation": None, "message": str(err)})
+                                 "N": None, "max_violation": None, "kernels_native": 0,
+                                 "kernels_compiled": 0, "message": str(err)})
                     continue
                 s = res.stats
                 row = {
@@ -197,7 +201,8 @@ def run(args: argparse.Namespace) -> int:
                     "cpu_time": round(s.cpu_time, 4),
                     "plans": s.plans, "conflicts": s.conflicts, "db_feasible_hits": s.db_feasible_hits,
                     "db_infeasible_hits": s.db_infeasible_hits, "reused_solutions": s.reused_solutions, "N0": s.N0, "N": s.N,
-                    "max_violation": s.max_violation, "message": res.message,
+                    "max_violation": s.max_violation, "kernels_native": s.kernels_native,
+                    "kernels_compiled": s.kernels_compiled, "message": res.message,
                 }
                 rows.append(row)
                 if not args.quiet:

@@ -14,9 +14,11 @@ def add_order_argument(parser: argparse.ArgumentParser) -> None:
                              "small relaxations, then the full graph (staged)")
 
 
-def add_jit_argument(parser: argparse.ArgumentParser) -> None:
+SOLVE_JIT_DEFAULT = ("the problem's solver setting `jit`, else kernels missing from the cache are "
+                     "compiled in the background for later solves")
+
+
+def add_jit_argument(parser: argparse.ArgumentParser, default: str = SOLVE_JIT_DEFAULT) -> None:
     parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
-                        help="--jit: compile the large derivative kernels to C during this solve "
-                             "(cached on disk); --no-jit: never. Default: the problem's solver setting "
-                             "`jit`, else kernels missing from the cache are compiled in the background "
-                             "for later solves")
+                        help="--jit: compile the large derivative kernels to C during the solve "
+                             f"(cached on disk); --no-jit: never. Default: {default}")

@@ -21,9 +21,9 @@ results.
 Three modes (`mode`), from the solver setting `jit` (`SolveOptions.jit`, `gnpp solve
 --jit/--no-jit`):
 - "background" (setting unset, the default): kernels already in the cache are loaded; a missing
-  one is generated as C at once and handed to a detached, niced worker process
-  (`gnppdsl.nlp.jit_worker`, one compile at a time per cache) while this solve runs it in the
-  virtual machine. The first solve on a machine is not slowed down by compiling (its workers'
+  one is saved as a job (`Function.save`) for a detached worker process at low priority
+  (`gnppdsl.nlp.jit_worker`: C code, compiler; one worker per cache) while this solve runs it
+  in the virtual machine. The first solve on a machine is not slowed down by compiling (its workers'
   CPU is not in its `cpu_time`: they may outlive it), later solves load the libraries.
   Without a compiler or a writable cache it quietly does nothing.
 - "now" (`jit = true`, `--jit`): missing kernels are compiled during the solve (the first
@@ -38,7 +38,6 @@ kernels whose background compile failed: they are marked `<key>.failed`).
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 import shutil
 import subprocess
@@ -56,8 +55,6 @@ MIN_INSTRUCTIONS = 5000
 FLAGS = ("-O0", "-shared", "-fPIC")
 COMPILE_MARGIN = 5.0       # seconds before the solve's deadline after which nothing is compiled
 COMPILE_TIMEOUT = 120.0    # seconds one compiler run may take
-WORKER_GRACE = 2.0         # seconds a started worker has to take the compile lock
-STALE_JOB = 900.0          # seconds after which a queued job of another process counts as lost
 MODES = ("off", "now", "background")
 
 
@@ -140,8 +137,8 @@ class KernelCache:
         self.last_error = ""
         self._memo: dict[str, ca.Function] = {}
         self._pending: dict[str, Path] = {}    # key -> library a worker is (or was) building
-        self._workers: list[subprocess.Popen] = []
-        self._worker_started = -math.inf      # time.perf_counter() of the last worker start
+        self._workers: list[subprocess.Popen] = []    # started workers (their short-lived parents)
+        self._skipped = 0          # kernels left to the VM for the deadline, not yet reported
 
     def native(self, f: ca.Function) -> ca.Function:
         """A compiled Function with f's inputs, outputs and values, or f itself."""
@@ -173,11 +170,18 @@ class KernelCache:
         for attempt in range(2):   # a damaged or stale library is removed and built again once
             try:
                 if not lib.exists():
-                    if self.background or time.perf_counter() > self.deadline - COMPILE_MARGIN:
-                        return f           # (background: a damaged library is not rebuilt here)
+                    if self.background:
+                        return f           # a damaged library was removed: a later solve queues it
+                    if time.perf_counter() > self.deadline - COMPILE_MARGIN:
+                        self._skipped += 1
+                        return f
                     self._build(f, key, lib)
                 g = ca.external(_symbol(key), str(lib))
                 if self.values(g, self.probes(f)) != expected:
+                    if self.background:    # compiled, but not to the same numbers: never again
+                        lib.with_suffix(".failed").write_text("the compiled kernel does not reproduce "
+                                                              "the virtual machine's values\n")
+                        lib.unlink(missing_ok=True)
                     raise RuntimeError(f"{lib}: the compiled kernel does not reproduce the original")
                 break
             except Exception as err:   # no compiler output, a damaged or stale library, ...
@@ -195,11 +199,15 @@ class KernelCache:
         return g
 
     def newly_ready(self) -> bool:
-        """True, once, when every kernel this process queued has been compiled (or has failed)
-        and at least one of them is a library now: a caller holding Functions built before
-        may rebuild them to use the libraries. Why all and not each: rebuilding the templates
-        costs seconds, so it is done once per batch. Also restarts the worker if the queue
-        still has jobs and no worker holds the lock (one that exited as jobs arrived)."""
+        """True, once, when a caller holding Functions built before should rebuild them:
+        background mode, every kernel this process queued has been compiled (or has failed)
+        and at least one of them is a library now (why all and not each: rebuilding the
+        templates costs seconds, so it is done once per batch; a worker is started again if
+        jobs wait and none runs); "now" mode, kernels were left to the VM because a solve's
+        deadline was near (the next solve compiles them)."""
+        if self._skipped:
+            self._skipped = 0
+            return True
         if not self._pending:
             return False
         waiting = {k: lib for k, lib in self._pending.items()
@@ -212,46 +220,51 @@ class KernelCache:
         return ready
 
     def _enqueue(self, f: ca.Function, key: str, lib: Path) -> None:
-        """Queue f for the background worker (`gnppdsl.nlp.jit_worker`): the Function saved
-        in a job directory (written under a temporary name, then renamed), and a worker
-        started unless one holds the cache's lock. Not twice in one process; not while a job
-        for it (queued by another process) is waiting."""
+        """Queue f for the background worker (`gnppdsl.nlp.jit_worker`): the Function saved in
+        a directory of this process (`<key>.<random>.tmp`), renamed to `jobs/<key>` when
+        complete, and a worker started unless one runs. Not twice in one process; a job for the
+        same kernel queued by another process is left as it is (a worker is started for it if
+        none runs: its own worker may have died)."""
         if key in self._pending:
             return
         root = self.directory / "jobs"
-        job, tmp = root / key, root / f"{key}.tmp"
+        job = root / key
         t0 = time.perf_counter()
+        tmp = None
         try:
-            if job.exists() and time.time() - job.stat().st_mtime < STALE_JOB:
-                self._pending[key] = lib           # queued by another process: wait for it
-                return
-            shutil.rmtree(job, ignore_errors=True)
-            shutil.rmtree(tmp, ignore_errors=True)
-            tmp.mkdir(parents=True)
-            f.save(str(tmp / "kernel.casadi"))
-            os.replace(tmp, job)
+            if not job.exists():
+                root.mkdir(parents=True, exist_ok=True)
+                tmp = Path(tempfile.mkdtemp(dir=root, prefix=key + ".", suffix=".tmp"))
+                f.save(str(tmp / "kernel.casadi"))
+                try:
+                    os.rename(tmp, job)            # fails if another process queued it meanwhile
+                    self.queued += 1
+                except OSError:
+                    if not job.exists():
+                        raise
             self._pending[key] = lib
-            self.queued += 1
             self._start_worker()
         except Exception as err:                   # no job: the kernel stays in the VM
-            shutil.rmtree(tmp, ignore_errors=True)
             self.failed += 1
             self.last_error = str(err)[-500:]
         finally:
+            if tmp is not None:
+                shutil.rmtree(tmp, ignore_errors=True)
             self.compile_time += time.perf_counter() - t0
 
     def _start_worker(self) -> None:
-        """Start a worker unless one holds the lock or this process started one in the last
-        `WORKER_GRACE` seconds (it may not have taken the lock yet)."""
-        self._workers = [w for w in self._workers if w.poll() is None]      # reap the detached parents
-        now = time.perf_counter()
-        if now - self._worker_started < WORKER_GRACE or _locked(self.directory):
+        """Start a worker unless one is starting (its parent, which exits once the child has
+        tried the lock, is still running) or one holds the cache's lock."""
+        self._workers = [w for w in self._workers if w.poll() is None]      # reap finished parents
+        if self._workers or _locked(self.directory):
             return
-        self._worker_started = now
-        self._workers.append(subprocess.Popen(
-            [sys.executable, "-m", "gnppdsl.nlp.jit_worker", str(self.directory), self.cc, *FLAGS],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            close_fds=True))
+        try:
+            self._workers.append(subprocess.Popen(
+                [sys.executable, "-m", "gnppdsl.nlp.jit_worker", str(self.directory), self.cc, *FLAGS],
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                close_fds=True))
+        except OSError as err:                     # the jobs stay queued for a later solve
+            self.last_error = f"cannot start the jit worker: {err}"
 
     @staticmethod
     def generate(f: ca.Function, key: str, directory: Path) -> Path:

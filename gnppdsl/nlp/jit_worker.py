@@ -3,13 +3,17 @@
     python -m gnppdsl.nlp.jit_worker CACHE_DIR CC [FLAG ...]
 
 A solve queues a kernel as a job directory `CACHE_DIR/jobs/<key>/` holding the casadi Function
-(`kernel.casadi`, `Function.save`) and starts this worker. The worker detaches itself (it is
-then no child of the solve: its CPU is not in the solve's times, and it outlives a `gnpp solve`
-that ends first), lowers its priority, takes the cache's lock (one worker per cache directory)
-and compiles the queued jobs one after the other, oldest first, until none is left: C code
-from casadi's CodeGenerator, the C compiler, then the library moved into place atomically
-(`CACHE_DIR/<key>.so`: a reader sees no library or a complete one) and the job removed. A
-failed job leaves `<key>.failed` with the compiler's message, so no later solve queues it again.
+(`kernel.casadi`, `Function.save`) and starts this worker. The worker detaches itself (a new
+session: it is then no child of the solve, so its CPU is not in the solve's times, and it
+outlives a `gnpp solve` that ends first), lowers its priority (nice and, where the kernel
+groups processes by session, its autogroup's nice), and takes the cache's lock: one worker per
+cache directory. Then it compiles the queued jobs one after the other, oldest first, until none
+is left: each job is first renamed to `<key>.work` (so no solve re-queues or removes it
+meanwhile), then C code from casadi's CodeGenerator, the C compiler, the library moved into
+place atomically (`CACHE_DIR/<key>.so`: a reader sees no library or a complete one), and the
+work directory removed. When the compiler rejects the code, `<key>.failed` keeps its message
+and no later solve queues the kernel again; a timeout or an I/O error leaves no marker (a later
+solve queues it again).
 """
 from __future__ import annotations
 
@@ -29,14 +33,14 @@ def lock_path(cache: Path) -> Path:
 
 
 def jobs(cache: Path) -> list[Path]:
-    """Complete job directories, oldest first (a job is written under `<key>.tmp`, then
-    renamed, so a directory without the suffix is complete)."""
+    """Queued jobs, oldest first: directories `jobs/<key>` (written under a temporary name
+    ending in `.tmp`, then renamed, so a name without a suffix is complete)."""
     root = cache / "jobs"
     if not root.is_dir():
         return []
     found = []
     for d in root.iterdir():
-        if d.is_dir() and not d.name.endswith(".tmp") and (d / KERNEL_FILE).exists():
+        if "." not in d.name and (d / KERNEL_FILE).exists():
             try:
                 found.append((d.stat().st_mtime, d))
             except OSError:
@@ -44,28 +48,40 @@ def jobs(cache: Path) -> list[Path]:
     return [d for _, d in sorted(found)]
 
 
+def remove_orphans(cache: Path) -> None:
+    """Remove `.work` directories: with the lock held, no worker is working on them (one
+    killed mid-compile left them; their kernels get queued again by a later solve)."""
+    root = cache / "jobs"
+    if root.is_dir():
+        for d in root.glob("*.work"):
+            shutil.rmtree(d, ignore_errors=True)
+
+
 def compile_one(job: Path, cache: Path, cc: str, flags: list[str]) -> bool:
-    """Compile one job into `cache/<key>.so` (True), or mark it failed; remove the job."""
+    """Compile one job into `cache/<key>.so` (True); remove it either way."""
     import casadi as ca
 
     from gnppdsl.nlp.jit import KernelCache      # casadi: imported only when there is work
 
     key = job.name
     lib = cache / f"{key}.so"
+    work = job.with_name(key + ".work")
+    try:
+        os.replace(job, work)
+    except OSError:
+        return False                             # gone meanwhile
     try:
         if lib.exists():
             return True
-        src = KernelCache.generate(ca.Function.load(str(job / KERNEL_FILE)), key, job)
+        src = KernelCache.generate(ca.Function.load(str(work / KERNEL_FILE)), key, work)
         out = src.with_suffix(".so")
         try:
             proc = subprocess.run([cc, *flags, "-o", str(out), str(src)],
                                   capture_output=True, text=True, timeout=COMPILE_TIMEOUT)
-            failed = (proc.stderr[-2000:] or f"{cc} exited with {proc.returncode}") \
-                if proc.returncode != 0 else None
-        except (OSError, subprocess.TimeoutExpired) as err:
-            failed = f"{cc}: {err}"
-        if failed is not None:
-            (cache / f"{key}.failed").write_text(failed)
+        except (OSError, subprocess.TimeoutExpired):
+            return False                         # not the code's fault: no marker
+        if proc.returncode != 0:
+            (cache / f"{key}.failed").write_text(proc.stderr[-2000:] or f"{cc} exited with {proc.returncode}")
             return False
         part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
         try:
@@ -74,64 +90,85 @@ def compile_one(job: Path, cache: Path, cc: str, flags: list[str]) -> bool:
         finally:
             part.unlink(missing_ok=True)
         return True
-    except Exception as err:                    # an unreadable job, a full disk, ...
-        try:
-            (cache / f"{key}.failed").write_text(f"{type(err).__name__}: {err}")
-        except OSError:
-            pass
+    except Exception:                            # an unreadable job, a full disk, ...
         return False
     finally:
-        shutil.rmtree(job, ignore_errors=True)
+        shutil.rmtree(work, ignore_errors=True)
 
 
-def run_queue(cache: Path, cc: str, flags: list[str], seen: set[str] | None = None) -> int:
-    """Compile jobs until none is left; return how many were compiled. Returns at once when
-    another worker holds the lock (it will take the new jobs too). `seen`: jobs already tried
-    (a job directory that cannot be removed is not compiled forever)."""
-    seen = set() if seen is None else seen
+def run_queue(cache: Path, cc: str, flags: list[str]) -> int:
+    """With the lock held: compile jobs until none is left; return how many were compiled."""
     done = 0
-    with open(lock_path(cache), "a") as lock:
+    remove_orphans(cache)
+    tried: set[str] = set()          # a job that reappears under the same key is not looped on
+    while True:
+        queue = [j for j in jobs(cache) if j.name not in tried]
+        if not queue:
+            return done
+        tried.add(queue[0].name)
+        done += compile_one(queue[0], cache, cc, flags)
+
+
+def try_lock(cache: Path):
+    """The open lock file with an exclusive lock, or None when another worker holds it."""
+    fh = open(lock_path(cache), "a")
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.close()
+        return None
+    return fh
+
+
+def serve(cache: Path, cc: str, flags: list[str], lock) -> None:
+    """Compile the queue; after unlocking, look once more: a job queued between the last scan
+    and the unlock was queued by a solve that saw the lock held and started no worker."""
+    while lock is not None:
         try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return 0
-        while True:
-            queue = [j for j in jobs(cache) if j.name not in seen]
-            if not queue:
-                break
-            seen.add(queue[0].name)
-            done += compile_one(queue[0], cache, cc, flags)
-    # a job queued between the last scan and the unlock: the solve that queued it saw the lock
-    # held and started no worker, so look once more
-    if any(j.name not in seen for j in jobs(cache)):
-        done += run_queue(cache, cc, flags, seen)
-    return done
+            run_queue(cache, cc, flags)
+        finally:
+            lock.close()
+        lock = try_lock(cache) if jobs(cache) else None
 
 
-def detach() -> bool:
-    """Fork; the parent returns False (and exits), the child True in a new session. Why: the
-    solve reaps the short-lived parent; the child is reparented, so its CPU time never shows
-    up in the solve's RUSAGE_CHILDREN."""
-    if os.fork() > 0:
-        return False
-    os.setsid()
+def lower_priority() -> None:
     try:
         os.nice(10)
     except OSError:
         pass
-    return True
+    try:                             # Linux autogroups: nice counts only inside the group
+        Path("/proc/self/autogroup").write_text("19")
+    except OSError:
+        pass
 
 
 def main(argv: list[str]) -> int:
+    """Fork: the child (new session, low priority) tries the lock and tells the parent
+    whether it got it; the parent exits then. So while the parent runs, a worker is starting
+    (the solve does not start another), and once it has exited, the lock says whether one is
+    working. The child is reparented: its CPU never shows up in the solve's RUSAGE_CHILDREN."""
     if len(argv) < 2:
         print(__doc__.strip().splitlines()[2].strip(), file=sys.stderr)
         return 2
-    if not detach():
+    cache, cc, flags = Path(argv[0]), argv[1], argv[2:]
+    r, w = os.pipe()
+    if os.fork() > 0:
+        os.close(w)
+        os.read(r, 1)                # the child has tried the lock (or died: EOF)
         return 0
+    os.close(r)
+    code = 0
     try:
-        run_queue(Path(argv[0]), argv[1], argv[2:])
+        os.setsid()
+        lower_priority()
+        lock = try_lock(cache)
+        os.write(w, b"1" if lock is not None else b"0")
+        os.close(w)
+        serve(cache, cc, flags, lock)
+    except BaseException:
+        code = 1
     finally:
-        os._exit(0)                 # the forked child never returns into the interpreter's exit path
+        os._exit(code)               # the forked child never returns into the interpreter's exit path
 
 
 if __name__ == "__main__":

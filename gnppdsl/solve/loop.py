@@ -754,8 +754,9 @@ class _Run:
         self.stats.logic_time += time.perf_counter() - t0
         from gnppdsl.nlp import jit
 
-        if compiled.geometry is not None:      # a solve starts with no remembered evaluations
-            compiled.geometry.forget_evaluations()
+        forget = getattr(compiled.geometry, "forget_evaluations", None)
+        if forget is not None:                 # a solve starts with no remembered evaluations
+            forget()
         self.compiler = compiled.body_compiler(jit.mode(options.jit))
         self.kernels = self.compiler.kernels
         self.kernel_base = (0, 0.0, 0, 0)   # kernels compiled, compile time, failed, queued before this run
@@ -922,7 +923,7 @@ class _Run:
             self.stats.kernel_compile_time = self.kernels.compile_time - self.kernel_base[1]
             self.stats.kernels_failed = self.kernels.failed - self.kernel_base[2]
             self.stats.kernels_queued = self.kernels.queued - self.kernel_base[3]
-            self.stats.kernel_error = self.kernels.last_error
+            self.stats.kernel_error = self.kernels.last_error if self.stats.kernels_failed else ""
         # NLPs = feasibility problems solved (each may take several ipopt runs: restarts and
         # a polish before an infeasible verdict, counted in ipopt_runs); time of all of them
         self.stats.nlp_solves = self.nlp_calls + self.heuristic_solves

@@ -22,7 +22,9 @@ def test_a_second_solve_reuses_every_template_and_returns_the_same_solution():
     compiled = occupied_problem(waypoints=8)
     first = solve_compiled(compiled, _options())
     assert first.solved and first.stats.N == 4, first.message
-    compiler = compiled.body_compiler("off")
+    from gnppdsl.nlp import jit
+
+    compiler = compiled.body_compiler(jit.mode(_options().jit))
     built = compiler.compiled
     assert built > 0
 
