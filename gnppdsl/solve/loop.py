@@ -369,6 +369,8 @@ class _Checker:
                     self.lazy = lazy
                 if not r0.feasible:
                     self.results[key] = r0
+                    if modes.signature() in self.unconfirmed:
+                        self.unconfirmed.add(key)      # as final as the relaxation's verdict
                     return r0          # a relaxation is infeasible, so g is (Property 4.4)
             warm.update({v: self.values[v] for v in g.variables if v in self.values})
             todo = [v for v in trajs if v not in self.values]
@@ -389,10 +391,13 @@ class _Checker:
         r = None
         if self.local_first and self.solver.options.restarts > 0:
             r = self.local_solve(g, warm)
-            if r is None and not trajs:
-                # the verdict's first run would repeat the local one exactly: start it from
-                # the problem's initial guess instead (the random restarts follow as usual)
-                warm = {}
+            if not r.feasible:
+                # a one-start verdict (`confirm`): Alg. 1 goes on to search g's slices, each
+                # solved with restarts, and only if the subgraph it returns carries this verdict
+                # does that get the restarts. Why not the restarts now: g is a whole relaxation
+                # level, the largest NLP of the search (Lab 5: 130 factors over 8 steps, 3
+                # starts 8-9 s) and its slices find the conflict anyway (0.4-1 s each).
+                self.unconfirmed.add(key)
         if r is None:
             # ipopt's wall-time limit is fixed when a graph's NLP is assembled: give it what is left
             opts = self.solver.options
@@ -422,16 +427,14 @@ class _Checker:
         return r
 
     def local_solve(self, g: Any, warm: dict) -> Any:
-        """The warm start and the polish, without random restarts; the feasible result, or None
-        (then the caller runs the full solve with restarts: the verdict).
+        """The warm start and the polish, without random restarts: a feasible result, or an
+        infeasible verdict from one start (the caller marks it unconfirmed, see `confirm`).
 
         Why: a level solved to warm-start the full graph should end near its start. The
         solver's random restarts come before its polish, so a first run that stops at a tiny
         residual (Lab 1, no_col_traj: 2.7e-5 on a placement row) was restarted from a random
         point and came back with a feasible but far-off configuration, from which the motions
-        of the full graph did not converge; the polish alone solves it near the start. A
-        failure costs one extra run of a small level (the verdict solve then starts from the
-        initial guess instead of repeating this run)."""
+        of the full graph did not converge; the polish alone solves it near the start."""
         run = self.run
         opts = self.solver.options
         saved = opts.restarts
@@ -442,7 +445,7 @@ class _Checker:
         finally:
             opts.restarts = saved
         run.nlp_calls += 1
-        return r if r.feasible else None
+        return r
 
     def motions_between_keyframes(self, g: Any, trajs: Sequence[VarInstance], warm: dict) -> Any:
         """The motions of g phase by phase with the keyframes fixed at the mode-switch solution:

@@ -251,3 +251,23 @@ def test_recheck_keeps_a_real_whole_range_conflict():
     res = find_infeasible_subgraph(g, [], "t", solver=s, recheck=recheck)
     assert not res.feasible and res.time_range == (0, 1) and calls == [g.signature()]
     assert confirm_infeasible(res.subgraph)
+
+
+def test_the_heuristic_shrinks_a_long_component_before_the_time_search():
+    """`shrink_before_time_search`: on a 40-step chain whose contradiction sits at steps
+    30-31, the factors violated at the whole graph's convergence point induce a small
+    infeasible candidate, and the time search runs on it: no half or quarter of the chain is
+    ever solved (Alg. 1 as written solves G[0..20], G[0..30], ... first). The result is the
+    same exact conflict, confirmed infeasible by a multi-start re-solve."""
+    vs, fs = chain(40, conflict_at=30)
+    g = GraphNLP(fs)
+    res = find_infeasible_subgraph(g, [], "trn", solver=FeasibilitySolver())
+    assert not res.feasible
+    assert templates(res.subgraph) == [("toy.left", 30), ("toy.move", 30), ("toy.right", 31)]
+    assert confirm_infeasible(res.subgraph)
+    sizes = [n for _, n, _ in res.stats.log]
+    assert sizes[0] == g.n_factors and max(sizes[1:], default=0) <= 10, res.stats.log
+    # without the heuristic the time search starts with the first half of the chain
+    plain = find_infeasible_subgraph(g, [], "tr", solver=FeasibilitySolver())
+    assert templates(plain.subgraph) == templates(res.subgraph)
+    assert max(n for _, n, _ in plain.stats.log[1:]) > 20
