@@ -50,6 +50,7 @@ import casadi as ca
 import numpy as np
 
 from gnppdsl.errors import UserError
+from gnppdsl.nlp.jit_worker import install_library
 
 MIN_INSTRUCTIONS = 5000
 FLAGS = ("-O0", "-shared", "-fPIC")
@@ -321,13 +322,7 @@ class KernelCache:
                                       capture_output=True, text=True, timeout=COMPILE_TIMEOUT)
                 if proc.returncode != 0:
                     raise RuntimeError(f"{self.cc} failed: {proc.stderr[-1000:]}")
-                # atomic: a concurrent solve sees either no library or a complete one
-                part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
-                try:
-                    shutil.copyfile(out, part)
-                    os.replace(part, lib)
-                finally:
-                    part.unlink(missing_ok=True)
+                install_library(out, lib)
             self.compiled += 1
         finally:
             self.compile_time += time.perf_counter() - t0

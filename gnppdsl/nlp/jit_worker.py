@@ -83,17 +83,23 @@ def compile_one(job: Path, cache: Path, cc: str, flags: list[str]) -> bool:
         if proc.returncode != 0:
             (cache / f"{key}.failed").write_text(proc.stderr[-2000:] or f"{cc} exited with {proc.returncode}")
             return False
-        part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
-        try:
-            shutil.copyfile(out, part)
-            os.replace(part, lib)
-        finally:
-            part.unlink(missing_ok=True)
+        install_library(out, lib)
         return True
     except Exception:                            # an unreadable job, a full disk, ...
         return False
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def install_library(built: Path, lib: Path) -> None:
+    """Copy a compiled library into the cache atomically (a part file, then a rename): a
+    concurrent solve sees either no library or a complete one."""
+    part = lib.with_name(f"{lib.name}.{os.getpid()}.part")
+    try:
+        shutil.copyfile(built, part)
+        os.replace(part, lib)
+    finally:
+        part.unlink(missing_ok=True)
 
 
 def run_queue(cache: Path, cc: str, flags: list[str]) -> int:
