@@ -255,21 +255,33 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
     checker = _Checker(check or default_check, stats)
     rules = list(relaxations) if "r" in switches else []
     rules = [r for r in rules if r.dropped] + [FULL]
+
+    def time_search(g: GraphNLP) -> tuple[bool, tuple[int, int] | None]:
+        """Alg. 1's BinarySearchTime, with the second opinion on a kept whole range."""
+        feasible, rng = binary_search_time(g, checker)
+        if not feasible and recheck is not None and _whole_range_failed(g, rng, checker):
+            second = recheck(g)
+            if _ok(second):
+                checker.memo[g.signature()] = second
+                stats.rechecks_feasible += 1
+                feasible, rng = True, None
+        return feasible, rng
+
     for rule in rules:
         g_r = graph.apply_relaxation(rule.dropped, rule.name) if rule.dropped else graph
         values: dict[VarInstance, object] = {}
         complete = True
         for comp in g_r.connected_components():
-            if "t" in switches and "n" in switches:
-                comp = shrink_before_time_search(comp, checker, tol)
+            target = comp                      # what the time search and the heuristic shrink
             if "t" in switches:
-                feasible, rng = binary_search_time(comp, checker)
-                if not feasible and recheck is not None and _whole_range_failed(comp, rng, checker):
-                    second = recheck(comp)
-                    if _ok(second):
-                        checker.memo[comp.signature()] = second
-                        stats.rechecks_feasible += 1
-                        feasible, rng = True, None
+                if "n" in switches:
+                    target = shrink_before_time_search(comp, checker, tol)
+                feasible, rng = time_search(target)
+                if feasible and target is not comp:
+                    # the candidate turned out feasible on its second opinion: search the
+                    # component itself, as Alg. 1 has it (never take its verdict for comp's)
+                    target = comp
+                    feasible, rng = time_search(comp)
             else:
                 feasible = checker(comp)
                 rng = None if feasible else comp.steps
@@ -280,7 +292,7 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
                 else:
                     complete = False
                 continue
-            g_s = comp.time_slice(*rng) if "t" in switches else comp
+            g_s = target.time_slice(*rng) if "t" in switches else comp
             if "n" in switches:
                 r = checker.result(g_s)
                 if not isinstance(r, FeasibilityResult):

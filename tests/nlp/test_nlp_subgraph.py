@@ -271,3 +271,23 @@ def test_the_heuristic_shrinks_a_long_component_before_the_time_search():
     plain = find_infeasible_subgraph(g, [], "tr", solver=FeasibilitySolver())
     assert templates(plain.subgraph) == templates(res.subgraph)
     assert max(n for _, n, _ in plain.stats.log[1:]) > 20
+
+
+def test_a_shrunk_candidate_found_feasible_on_its_second_opinion_sends_the_search_back_to_the_component():
+    """If the candidate of `shrink_before_time_search` is turned feasible by `recheck`, that
+    says nothing about the (infeasible) component: the component itself is searched, and the
+    search still returns an infeasible subgraph instead of "no conflict"."""
+    vs, fs = chain(40, conflict_at=30)
+    g = GraphNLP(fs)
+    calls = []
+
+    def recheck(sub):                  # a second opinion that (wrongly) clears the candidate
+        calls.append(sub.name)
+        return "{v}" in sub.name
+
+    res = find_infeasible_subgraph(g, [], "trn", solver=FeasibilitySolver(), recheck=recheck)
+    assert any("{v}" in name for name in calls)         # the candidate did get its second opinion
+    assert not res.feasible and res.subgraph is not None
+    names = {t for t, _ in templates(res.subgraph)}
+    assert {("toy.left", 30), ("toy.right", 31)} <= set(templates(res.subgraph)) and "toy.move" in names
+    assert confirm_infeasible(res.subgraph)
