@@ -516,12 +516,11 @@ class _Builder:
         return base[i:j]
 
     def body(self, e: Any) -> Body:
-        if isinstance(e, Obj):
-            return Body(e.name)
+        b = Body.of(e)
+        if b is not None:
+            return b
         if isinstance(e, Call) and e.fn == "link":
-            if len(e.args) != 2 or not isinstance(e.args[0], Obj) or not isinstance(e.args[1], Str):
-                raise BodyError("link expects (robot object, link name string)", e)
-            return Body(e.args[0].name, link=e.args[1].value)
+            raise BodyError("link expects (robot object, link name string)", e)
         raise BodyError(f"expected a collision body (object or link(...)), got {e!r}", e)
 
     def call(self, e: Call):

@@ -33,7 +33,7 @@ from typing import Any, Callable, Iterable, Mapping
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Vec
+from gnppdsl.ir.expr import Call, Constraint, Index, Num, Slot, Vec
 from gnppdsl.nlp.geometry_protocol import Body, Geometry
 
 
@@ -281,11 +281,10 @@ class _Compiler:
                            (self.leaves[e.index],))
 
     def body_of(self, e: Any) -> Body:
-        if isinstance(e, Obj):
-            return Body(e.name)
-        if isinstance(e, Call) and e.fn == "link":
-            return Body(e.args[0].name, link=e.args[1].value)
-        raise EvaluationError(f"not a body: {e!r}")
+        b = Body.of(e)
+        if b is None:
+            raise EvaluationError(f"not a body: {e!r}")
+        return b
 
     def num(self, value: float) -> int:
         return self.t.constant(np.array([value]))

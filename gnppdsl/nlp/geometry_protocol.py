@@ -48,6 +48,20 @@ class Body:
     def __str__(self) -> str:
         return self.name if self.link is None else f"link({self.name}, {self.link!r})"
 
+    @staticmethod
+    def of(e: Any) -> "Body | None":
+        """The body a resolved expression names: an object `b1`, or `link(robot, "name")`;
+        None for anything else (the caller reports it in its own error type). One reading of
+        the body syntax for the casadi compiler, the numpy evaluator and the tests' oracle."""
+        from gnppdsl.ir.expr import Call, Obj, Str
+
+        if isinstance(e, Obj):
+            return Body(e.name)
+        if isinstance(e, Call) and e.fn == "link" and len(e.args) == 2 \
+                and isinstance(e.args[0], Obj) and isinstance(e.args[1], Str):
+            return Body(e.args[0].name, link=e.args[1].value)
+        return None
+
 
 @runtime_checkable
 class Geometry(Protocol):

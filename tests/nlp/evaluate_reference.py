@@ -9,7 +9,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.ir.expr import Call, Index, Num, Obj, Slot, Vec
+from gnppdsl.ir.expr import Call, Index, Num, Slot, Vec
 from gnppdsl.nlp.evaluate import _NUMERIC, EvaluationError, _const, _rot
 from gnppdsl.nlp.geometry_protocol import Body, Geometry
 
@@ -31,11 +31,10 @@ class _Interp:
         return pts[k]
 
     def body(self, e: Any) -> Body:
-        if isinstance(e, Obj):
-            return Body(e.name)
-        if isinstance(e, Call) and e.fn == "link":
-            return Body(e.args[0].name, link=e.args[1].value)
-        raise EvaluationError(f"not a body: {e!r}")
+        b = Body.of(e)
+        if b is None:
+            raise EvaluationError(f"not a body: {e!r}")
+        return b
 
     def ev(self, e: Any) -> np.ndarray:
         if isinstance(e, Num):
