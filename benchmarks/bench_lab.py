@@ -59,6 +59,7 @@ def main(argv=None) -> int:
                          "conflict it returns (SolveOptions.lazy_search)")
     args = ap.parse_args(argv)
 
+    from gnppdsl.geometry import native
     from gnppdsl.nlp import jit
     from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
     from gnppdsl.solve.verify_solution import verify_solution
@@ -99,7 +100,7 @@ def main(argv=None) -> int:
     base = SolveOptions.from_settings(comp.problem.settings, order=args.order,
                                       jit=args.jit if args.jit is not None else False)
     print(f"Lab benchmark: {args.seeds} seeds, time limit {args.time_limit:g} s, order {base.order}, "
-          f"jit {jit.mode(base.jit)}, solutions verified with pinocchio + coal (CPU s of "
+          f"jit {jit.mode(base.jit)}, distance queries {native.describe()}, solutions verified with pinocchio + coal (CPU s of "
           f"this process and its C compiler runs; paper: single core); templates "
           + ("compiled for every seed" if args.fresh_templates else
              "compiled by the first seed and reused ('first': its CPU s)")

@@ -20,3 +20,6 @@ def pytest_collection_modifyitems(config, items):
 # they would write to the user's cache and compete with the tests for the CPU. The jit tests
 # build their KernelCaches explicitly, in temporary directories.
 os.environ.setdefault("GNPP_JIT", "0")
+# Nor do they start the background build of the native distance library (gnppdsl.geometry.native):
+# `make setup` builds it, and tests/geometry/test_geometry_native.py builds it when it is missing.
+os.environ.setdefault("GNPP_NATIVE_BUILD", "0")

@@ -212,6 +212,8 @@ def run(args: argparse.Namespace) -> int:
     if not names:
         raise UserError("gnpp bench: no problem could be loaded")
     print(format_table(names, specs, rows))
+    from gnppdsl.geometry import native
+    print(f"distance queries: {native.describe()}")
     if skipped:
         print(f"skipped (load errors): {', '.join(skipped)}")
     if args.csv:

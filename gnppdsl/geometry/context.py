@@ -59,6 +59,7 @@ class GeometryContext:
         self._sdist_fn: dict[tuple, Any] = {}     # per body pair: Function; ("parts", planar): (input, model)
         self._fk_memo: dict[tuple, np.ndarray] = {}     # numeric fk_matrix by exact inputs
         self._pin_data: dict[str, Any] = {}             # one pinocchio Data per robot
+        self.native: Any = None                         # geometry.native library, once used
 
     # -- robots -------------------------------------------------------------------------------
     def robot(self, name: str) -> RobotModel:
@@ -199,6 +200,24 @@ class GeometryContext:
         to_rp, model = self._sdist_fn[key]
         return self._callback(body_a, body_b, planar), to_rp, model
 
+    def witness_fast(self, a: Any, b: Any, planar: bool = False) -> Any:
+        """The stop-gradient distance query of a body pair for evaluation only: the native twin
+        of its `WitnessCallback` (`sdist_parts`' first part) when the library is built and
+        handles the pair (`geometry.native`: the same numbers, no Python per query), else the
+        callback itself. Not differentiable: casadi cannot differentiate through the external
+        function (the callback declares zero derivatives), so it serves Functions that are only
+        evaluated, such as the stop-gradient values under compiled derivatives."""
+        cb = self._callback(a, b, planar)
+        if self.far_field is None:
+            from gnppdsl.geometry import native
+            lib = native.load()
+            if lib is not None:
+                fn = lib.function(cb.name(), cb.body_a, cb.body_b, planar)
+                if fn is not None:
+                    self.native = lib
+                    return fn
+        return cb
+
     def fk_chain(self, robot: str, q: Any, base: Any) -> FrameChain:
         """`chain.frame(name) -> (R, p)`: `fk_rp` of several frames at one (q, base) with the
         joint prefix shared (build-time helper; keep it only while building one expression)."""
@@ -237,6 +256,8 @@ class GeometryContext:
         self._fk_memo.clear()
         for cb in self._callbacks.values():
             cb.forget()
+        if self.native is not None:
+            self.native.forget()
 
     def fk_matrix(self, robot: str, q: np.ndarray, frame: str, base: np.ndarray | None = None) -> np.ndarray:
         """4x4 world placement of a frame computed by pinocchio (not casadi).

@@ -115,6 +115,9 @@ class CompiledBody:
     # outputs o as an input, and (x.., p) -> o; `function` is the first with o substituted
     open_function: ca.Function | None = field(default=None, compare=False)
     stops: ca.Function | None = field(default=None, compare=False)
+    # `function`'s values for evaluation only: the open function of the fast stop-gradient
+    # values (`GeometryContext.witness_fast`, native distance queries); not differentiable
+    evaluate: ca.Function | None = field(default=None, compare=False)
 
     @property
     def n_rows(self) -> int:
@@ -453,6 +456,8 @@ class _Builder:
         # callback output becomes a fresh symbol o_i, with its value expression in `stops`
         self.open_stops = open_stops and hasattr(geometry, "sdist_parts")
         self.stops: list[tuple[Any, Any]] = []     # (symbol o_i, callback(input) expression)
+        # the same values for evaluation only (`witness_fast`: the native twin when built)
+        self.fast_stops: list[Any] = []
 
     def plan_chains(self, constraints) -> None:
         """Mark the (robot, joints, base) of `fk` nodes that appear with two or more frames in
@@ -576,6 +581,9 @@ class _Builder:
             o = ca.SX.sym(f"o{len(self.stops)}", cbf.size1_out(0))
             x = ca.vertcat(ca.reshape(RA, 9, 1), pA, ca.reshape(RB, 9, 1), pB)
             self.stops.append((o, cbf(x)))
+            fast = g.witness_fast(self.body(ba), self.body(bb), fn == "sdist2") \
+                if hasattr(g, "witness_fast") else cbf
+            self.fast_stops.append(fast(x))
             return model(RA, pA, RB, pB, o)
         xa, xb = self.expr(pa), self.expr(pb)
         _check_size(fn, xa, n, e)
@@ -796,8 +804,9 @@ class BodyCompiler:
             else:
                 D = ca.jacobian(h, X)
             # derivatives with the stop-gradient symbols held constant, then their values
-            O, Ov = ((ca.vertcat(*t) for t in zip(*builder.stops)) if builder.stops
-                     else (ca.SX(0, 1), ca.SX(0, 1)))
+            # (evaluated only: the fast twins)
+            O, Ov = ((ca.vertcat(*[o for o, _ in builder.stops]), ca.vertcat(*builder.fast_stops))
+                     if builder.stops else (ca.SX(0, 1), ca.SX(0, 1)))
             ins = [*pts, *slots, p, lam] if hessian else [*pts, *slots, p]
             fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D, self._native)
         self._reps[key] = fn
@@ -924,13 +933,17 @@ class BodyCompiler:
             kinds += ["eq" if c.op == "==" else "ineq"] * h.numel()
         out = ca.vertcat(*rows) if rows else S(0, 1)
         fname = _fname(name)
-        open_f = stops = None
+        open_f = stops = evaluate = None
         if builder.stops:
             O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
             open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
-            stops = ca.Function(fname + "_stops", [*slots, p], [Ov])
+            # the stop-gradient values are only ever evaluated: the fast twins
+            fast = ca.vertcat(*builder.fast_stops)
+            stops = ca.Function(fname + "_stops", [*slots, p], [fast])
+            # one SX graph: the queries' inputs share the kinematic chains with the model
+            evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
             out = ca.substitute(out, O, Ov)
         f = ca.Function(fname, [*slots, p], [out])
         groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
         return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
-                            groups, open_f, stops)
+                            groups, open_f, stops, evaluate)

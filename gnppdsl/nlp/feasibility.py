@@ -307,9 +307,13 @@ class FeasibilitySolver:
         use_mx = mode == "MX" or any(cb.symbolic == "MX" for _, cb, _ in compiled) or (
             mode == "auto" and any(cb.primitives for _, cb, _ in compiled))
         S = ca.MX if use_mx else ca.SX
+        # ipopt with the exact Hessian gets jac_g and hess_lag from the per-template derivatives
+        # below and never differentiates g: g may then evaluate the bodies' fast twins
+        # (`CompiledBody.evaluate`: native distance queries), which casadi cannot differentiate
+        given_derivatives = self.options.plugin == "ipopt" and self.options.hessian == "exact"
         if use_mx:
             x, P, params, rows, kinds, factor_rows, layout = self._mapped_rows(graph, compiled, index,
-                                                                               offsets, n)
+                                                                               offsets, n, given_derivatives)
         else:
             params = np.concatenate([p for _, _, p in compiled]) if compiled else np.zeros(0)
             x = S.sym("x", n)
@@ -385,7 +389,8 @@ class FeasibilitySolver:
         return a
 
     @staticmethod
-    def _mapped_rows(graph: GraphNLP, compiled: list, index: dict, offsets: list[int], n: int):
+    def _mapped_rows(graph: GraphNLP, compiled: list, index: dict, offsets: list[int], n: int,
+                     fast: bool = False):
         """MX rows with one `Function.map` call per template Function: the k instances of a
         template become the k columns of one call, so casadi builds and evaluates derivatives
         per template, not per instance. Measured on the lab1 full graph (75 factors, 34
@@ -422,7 +427,8 @@ class FeasibilitySolver:
                 p0 += npar * k
             else:
                 Pg = ca.MX(0, k)
-            fn = cb.function if k == 1 else cb.function.map(k, "serial")
+            body = cb.evaluate if fast and cb.evaluate is not None else cb.function
+            fn = body if k == 1 else body.map(k, "serial")
             out = fn(*slots, Pg)
             rows.append(ca.vec(out))
             for t, (r, _, _) in enumerate(members):

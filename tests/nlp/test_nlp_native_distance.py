@@ -1,0 +1,58 @@
+"""A graph-NLP solved with the native distance queries takes the same path as with the Python
+callback: same verdict, same iterations, same point (boxes: identical coal shapes on both
+sides, so the answers are the same numbers), and the solution holds under coal directly."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("coal")
+from gnppdsl.geometry import native  # noqa: E402
+from gnppdsl.geometry.context import GeometryContext  # noqa: E402
+from gnppdsl.ir.expr import Constraint, Num, Obj, Slot  # noqa: E402
+from gnppdsl.ir.scene_model import Scene, SceneObject, SceneShape  # noqa: E402
+from gnppdsl.nlp.evaluate import max_violation  # noqa: E402
+from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions  # noqa: E402
+from gnppdsl.nlp.graph import GraphNLP  # noqa: E402
+
+from nlp_toys import C, factor, in_box, pose  # noqa: E402
+
+I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def _boxes(n: int, c: float):
+    objs = [SceneObject(f"b{i}", SceneShape("box", (0.4, 0.3)), I7, pose2=(0, 0, 0)) for i in range(n)]
+    geo = GeometryContext(Scene("boxes", 2, {}, {o.name: o for o in objs}))
+    vs = [pose(f"b{i}", 0) for i in range(n)]
+    fs = [in_box(v, c, 0) for v in vs]
+    fs += [factor("toy.sd", [vs[i], vs[j]],
+                  [Constraint(C("sdist2", Obj(f"b{i}"), Slot(0), Obj(f"b{j}"), Slot(1)), ">=", Num(0.05))],
+                  0, ("collision",))
+           for i in range(n) for j in range(i + 1, n)]
+    return geo, fs
+
+
+@pytest.mark.parametrize("c", [0.5, 0.25])      # feasible (room for 4 boxes) and infeasible
+def test_native_and_python_distances_give_the_same_solve(c, monkeypatch):
+    lib = native.load(start_build=False)
+    if lib is None:
+        pytest.skip("native distance library not built (python -m gnppdsl.geometry.native)")
+    results = []
+    for use_native in (True, False):
+        geo, fs = _boxes(4, c)
+        if not use_native:
+            monkeypatch.setattr(GeometryContext, "witness_fast",
+                                lambda self, a, b, planar=False: self._callback(a, b, planar))
+        solver = FeasibilitySolver(geo, SolverOptions(restarts=1))
+        res = solver.solve(GraphNLP(fs), seed=3)
+        results.append((res, fs, geo))
+    (r1, fs1, geo1), (r2, fs2, geo2) = results
+    assert r1.feasible == r2.feasible
+    assert r1.iterations == r2.iterations
+    v1 = np.concatenate([r1.values[v] for v in sorted(r1.values, key=str)])
+    v2 = np.concatenate([r2.values[v] for v in sorted(r2.values, key=str)])
+    np.testing.assert_allclose(v1, v2, rtol=0, atol=1e-9)
+    if r1.feasible:
+        assert max_violation(fs1, r1.values, geo1)[0] <= 1e-6        # coal directly
+    else:
+        assert c == 0.25
