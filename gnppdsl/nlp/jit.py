@@ -31,9 +31,10 @@ Three modes (`mode`), from the solver setting `jit` (`SolveOptions.jit`, `gnpp s
   cache is a clear error. What the benchmarks use to measure with every kernel compiled.
 - "off" (`jit = false`, `--no-jit`, or `GNPP_JIT=0` whatever the setting says).
 `GNPP_JIT_CACHE` sets the cache directory (default `~/.cache/gnppdsl/jit`), `GNPP_CC` the
-compiler (`cc`). The cache has no size limit: each scene and domain adds its kernels (~30-60
-files of 100-400 kB for the Lab); delete the directory to reclaim the space (and to retry
-kernels whose background compile failed: they are marked `<key>.failed`).
+compiler (`cc`). The cache keeps at most `GNPP_JIT_CACHE_MB` (default 512) MB of libraries:
+after compiling, the least recently loaded ones are removed (`jit_worker.prune`; a Lab problem
+adds ~30-60 files of 100-400 kB). Delete the directory to retry kernels whose background
+compile failed (they are marked `<key>.failed`).
 """
 from __future__ import annotations
 
@@ -50,7 +51,7 @@ import casadi as ca
 import numpy as np
 
 from gnppdsl.errors import UserError
-from gnppdsl.nlp.jit_worker import install_library
+from gnppdsl.nlp.jit_worker import install_library, prune, try_lock
 
 MIN_INSTRUCTIONS = 5000
 FLAGS = ("-O0", "-shared", "-fPIC")
@@ -197,6 +198,10 @@ class KernelCache:
             return f
         self.loaded += 1
         self._memo[key] = g
+        try:
+            os.utime(lib)          # recently used: the size limit removes the oldest (`prune`)
+        except OSError:
+            pass
         return g
 
     def newly_ready(self) -> bool:
@@ -324,6 +329,12 @@ class KernelCache:
                     raise RuntimeError(f"{self.cc} failed: {proc.stderr[-1000:]}")
                 install_library(out, lib)
             self.compiled += 1
+            lock = try_lock(self.directory)      # no worker busy: keep the size limit
+            if lock is not None:
+                try:
+                    prune(self.directory)
+                finally:
+                    lock.close()
         finally:
             self.compile_time += time.perf_counter() - t0
 

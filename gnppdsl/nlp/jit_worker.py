@@ -102,14 +102,52 @@ def install_library(built: Path, lib: Path) -> None:
         part.unlink(missing_ok=True)
 
 
+def cache_limit() -> int:
+    """Bytes of compiled kernels a cache keeps (`GNPP_JIT_CACHE_MB`, default 512 MB; a Lab
+    problem's kernels take 10-40 MB)."""
+    try:
+        return int(float(os.environ.get("GNPP_JIT_CACHE_MB", "512")) * 2 ** 20)
+    except ValueError:
+        return 512 * 2 ** 20
+
+
+def prune(cache: Path, limit: int | None = None) -> list[Path]:
+    """With the lock held: remove the least recently used libraries (by modification time,
+    which a solve refreshes when it loads one) until the libraries take at most `limit`
+    bytes; return the removed paths. Why safe: a process that has a removed library loaded
+    keeps its mapping, and a later solve queues the kernel again."""
+    limit = cache_limit() if limit is None else limit
+    libs = []
+    for lib in cache.glob("*.so"):
+        try:
+            st = lib.stat()
+        except OSError:
+            continue
+        libs.append((st.st_mtime, st.st_size, lib))
+    total = sum(size for _, size, _ in libs)
+    removed = []
+    for _, size, lib in sorted(libs):
+        if total <= limit:
+            break
+        try:
+            lib.unlink()
+        except OSError:
+            continue
+        total -= size
+        removed.append(lib)
+    return removed
+
+
 def run_queue(cache: Path, cc: str, flags: list[str]) -> int:
-    """With the lock held: compile jobs until none is left; return how many were compiled."""
+    """With the lock held: compile jobs until none is left, then keep the cache within its
+    size limit (`prune`); return how many were compiled."""
     done = 0
     remove_orphans(cache)
     tried: set[str] = set()          # a job that reappears under the same key is not looped on
     while True:
         queue = [j for j in jobs(cache) if j.name not in tried]
         if not queue:
+            prune(cache)
             return done
         tried.add(queue[0].name)
         done += compile_one(queue[0], cache, cc, flags)

@@ -155,3 +155,48 @@ def test_the_modes_of_the_setting(tmp_path, monkeypatch):
     assert kc is not None and kc.background
     monkeypatch.setenv("GNPP_CC", str(tmp_path / "no-such-cc"))
     assert jit.kernel_cache("background") is None    # no compiler: no kernels
+
+
+def test_prune_keeps_the_cache_within_its_limit_removing_the_least_recently_used(tmp_path):
+    """Libraries beyond the size limit go oldest first (by modification time, which loading
+    refreshes); jobs, markers and the newest libraries stay."""
+    import os
+
+    from gnppdsl.nlp.jit_worker import prune
+    libs = []
+    for i in range(6):
+        lib = tmp_path / f"k{i}.so"
+        lib.write_bytes(b"x" * 1000)
+        os.utime(lib, (1000 + i, 1000 + i))
+        libs.append(lib)
+    (tmp_path / "k9.failed").write_text("no")
+    os.utime(libs[0], (5000, 5000))             # k0 was loaded last: the most recent
+    removed = prune(tmp_path, limit=3500)
+    assert sorted(p.name for p in removed) == ["k1.so", "k2.so", "k3.so"]
+    assert sorted(p.name for p in tmp_path.glob("*.so")) == ["k0.so", "k4.so", "k5.so"]
+    assert (tmp_path / "k9.failed").exists()
+    assert prune(tmp_path, limit=3500) == []
+
+
+def test_loading_a_library_marks_it_recently_used(tmp_path):
+    """A kernel loaded from the cache gets a fresh modification time (what `prune` keeps)."""
+    import os
+
+    import casadi as ca
+
+    from gnppdsl.nlp.jit import KernelCache
+    if KernelCache(tmp_path).cc is None:
+        pytest.skip("no C compiler")
+    x = ca.SX.sym("x", 30)
+    e = x
+    for _ in range(60):
+        e = ca.sin(e) * ca.cos(e[::-1]) + e
+    f = ca.Function("big", [x], [ca.jacobian(ca.sum1(e), x)])
+    first = KernelCache(tmp_path, min_instructions=10)
+    g = first.native(f)
+    assert first.compiled == 1 and g is not f
+    lib = next(tmp_path.glob("*.so"))
+    os.utime(lib, (1000, 1000))
+    second = KernelCache(tmp_path, min_instructions=10)
+    second.native(f)
+    assert second.loaded == 1 and lib.stat().st_mtime > 1000
