@@ -77,7 +77,7 @@ def test_a_finger_in_a_resting_block_violates_the_domain_and_the_verification(la
     values[pose_b1] = np.asarray(rel, float)
     f = _gripper_factors(graph)[(step, "left_arm", "b1")]
     rows = [h for _, h in constraint_rows(f, values, ctx)]
-    assert len(rows) == 5                      # links 5, 6, hand, left finger, right finger
+    assert len(rows) == 6                      # links 5, 6, hand, left finger, right finger, 7
     assert max(rows[:3]) <= 0.0, rows          # clear_object's rows hold: they miss the finger
     assert 0.002 < factor_violation(f, values, ctx) < 0.004, rows
 
@@ -87,4 +87,34 @@ def test_a_finger_in_a_resting_block_violates_the_domain_and_the_verification(la
     rep = verify_solution(ctx, bad)
     assert not rep.ok
     assert any(f"s{step}: collision" in x and "b1" in x and "left_arm/panda_leftfinger" in x
+               for x in rep.failures), rep.failures
+
+
+def test_link7_inside_a_block_violates_the_keyframe_factor_and_the_verification(lab1):
+    """Link 7 is a keyframe collision body of `clear_gripper` (the verification found it 3.6 mm
+    inside o1 at a Lab 5 keyframe when only links 5, 6 and the hand were): a block moved onto
+    link 7 violates the factor's link-7 row, and the independent verification reports the
+    same contact."""
+    c, r = lab1
+    graph, values = r.extras["graph"], dict(r.extras["values"])
+    ctx = c.geometry
+    step = 1
+    assert "parent(b1) = table" in r.steps[step].state
+    q = np.asarray(r.steps[step].values["q(left_arm)"], float)
+    T_link7 = ctx.fk_matrix("left_arm", q, "panda_link7")
+    T_table = se3_to_matrix(np.asarray(ctx.scene.objects["table"].pose, float))
+    centre, _ = ctx.body(("link", "left_arm", "panda_link7")).bounding_sphere()
+    local = np.eye(4)
+    local[:3, 3] = centre                      # b1 centred on link 7's collision hull
+    rel = matrix_to_se3(np.linalg.inv(T_table) @ T_link7 @ local)
+    pose_b1 = next(v for v in graph.variables if v.key == "pose(b1)" and v.step == step)
+    values[pose_b1] = np.asarray(rel, float)
+    f = _gripper_factors(graph)[(step, "left_arm", "b1")]
+    rows = [h for _, h in constraint_rows(f, values, ctx)]
+    assert rows[5] > 0.01, rows                # the link-7 row: penetration plus the margin
+    steps = copy.deepcopy(r.steps)
+    steps[step].values["pose(b1)"] = list(map(float, rel))
+    bad = type("R", (), {"steps": steps, "extras": r.extras})()
+    rep = verify_solution(ctx, bad)
+    assert any(f"s{step}: collision" in x and "b1" in x and "left_arm/panda_link7" in x
                for x in rep.failures), rep.failures
