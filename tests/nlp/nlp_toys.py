@@ -139,3 +139,20 @@ def _rot_numpy(q):
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def coal_boxes(n: int, c: float):
+    """n planar 0.4 x 0.3 boxes (coal shapes, `sdist2` >= 0.05 pairwise) inside the square
+    [-c, c]^2: (GeometryContext, factors). Needs coal."""
+    from gnppdsl.geometry.context import GeometryContext
+    from gnppdsl.ir.scene_model import Scene, SceneObject, SceneShape
+    i7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    objs = [SceneObject(f"b{i}", SceneShape("box", (0.4, 0.3)), i7, pose2=(0, 0, 0)) for i in range(n)]
+    geo = GeometryContext(Scene("boxes", 2, {}, {o.name: o for o in objs}))
+    vs = [pose(f"b{i}", 0) for i in range(n)]
+    fs = [in_box(v, c, 0) for v in vs]
+    fs += [factor("toy.sd", [vs[i], vs[j]],
+                  [Constraint(C("sdist2", Obj(f"b{i}"), Slot(0), Obj(f"b{j}"), Slot(1)), ">=", Num(0.05))],
+                  0, ("collision",))
+           for i in range(n) for j in range(i + 1, n)]
+    return geo, fs

@@ -11,27 +11,12 @@ import pytest
 pytest.importorskip("coal")
 from gnppdsl.geometry.context import GeometryContext  # noqa: E402
 from gnppdsl.geometry.distance import WitnessCallback  # noqa: E402
-from gnppdsl.ir.expr import Constraint, Num, Obj, Slot  # noqa: E402
-from gnppdsl.ir.scene_model import Scene, SceneObject, SceneShape  # noqa: E402
 from gnppdsl.nlp.evaluate import max_violation  # noqa: E402
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions  # noqa: E402
 from gnppdsl.nlp.graph import GraphNLP  # noqa: E402
 
-from nlp_toys import C, factor, in_box, pose  # noqa: E402
+from nlp_toys import coal_boxes  # noqa: E402
 
-I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
-
-
-def _boxes(n: int, c: float):
-    objs = [SceneObject(f"b{i}", SceneShape("box", (0.4, 0.3)), I7, pose2=(0, 0, 0)) for i in range(n)]
-    geo = GeometryContext(Scene("boxes", 2, {}, {o.name: o for o in objs}))
-    vs = [pose(f"b{i}", 0) for i in range(n)]
-    fs = [in_box(v, c, 0) for v in vs]
-    fs += [factor("toy.sd", [vs[i], vs[j]],
-                  [Constraint(C("sdist2", Obj(f"b{i}"), Slot(0), Obj(f"b{j}"), Slot(1)), ">=", Num(0.05))],
-                  0, ("collision",))
-           for i in range(n) for j in range(i + 1, n)]
-    return geo, fs
 
 
 @pytest.fixture
@@ -50,7 +35,7 @@ def counted(monkeypatch):
 
 
 def test_jac_g_is_the_jacobian_of_g_with_one_callback_pass(counted):
-    geo, fs = _boxes(3, 0.4)
+    geo, fs = coal_boxes(3, 0.4)
     a = FeasibilitySolver(geo, SolverOptions(restarts=0)).assemble(GraphNLP(fs))
     rng = np.random.default_rng(1)
     z = rng.uniform(-0.4, 0.4, a.lbx.size)
@@ -68,7 +53,7 @@ def test_jac_g_is_the_jacobian_of_g_with_one_callback_pass(counted):
 
 
 def test_ipopt_solves_with_the_placeholder(counted):
-    geo, fs = _boxes(3, 0.4)
+    geo, fs = coal_boxes(3, 0.4)
     res = FeasibilitySolver(geo, SolverOptions(restarts=0)).solve(GraphNLP(fs), seed=0)
     assert res.feasible
     assert max_violation(fs, res.values, geo)[0] <= 1e-6      # coal directly, not the NLP

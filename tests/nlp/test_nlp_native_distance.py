@@ -9,27 +9,12 @@ import pytest
 pytest.importorskip("coal")
 from gnppdsl.geometry import native  # noqa: E402
 from gnppdsl.geometry.context import GeometryContext  # noqa: E402
-from gnppdsl.ir.expr import Constraint, Num, Obj, Slot  # noqa: E402
-from gnppdsl.ir.scene_model import Scene, SceneObject, SceneShape  # noqa: E402
 from gnppdsl.nlp.evaluate import max_violation  # noqa: E402
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions  # noqa: E402
 from gnppdsl.nlp.graph import GraphNLP  # noqa: E402
 
-from nlp_toys import C, factor, in_box, pose  # noqa: E402
+from nlp_toys import coal_boxes  # noqa: E402
 
-I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
-
-
-def _boxes(n: int, c: float):
-    objs = [SceneObject(f"b{i}", SceneShape("box", (0.4, 0.3)), I7, pose2=(0, 0, 0)) for i in range(n)]
-    geo = GeometryContext(Scene("boxes", 2, {}, {o.name: o for o in objs}))
-    vs = [pose(f"b{i}", 0) for i in range(n)]
-    fs = [in_box(v, c, 0) for v in vs]
-    fs += [factor("toy.sd", [vs[i], vs[j]],
-                  [Constraint(C("sdist2", Obj(f"b{i}"), Slot(0), Obj(f"b{j}"), Slot(1)), ">=", Num(0.05))],
-                  0, ("collision",))
-           for i in range(n) for j in range(i + 1, n)]
-    return geo, fs
 
 
 @pytest.mark.parametrize("c", [0.5, 0.25])      # feasible (room for 4 boxes) and infeasible
@@ -39,7 +24,7 @@ def test_native_and_python_distances_give_the_same_solve(c, monkeypatch):
         pytest.skip("native distance library not built (python -m gnppdsl.geometry.native)")
     results = []
     for use_native in (True, False):
-        geo, fs = _boxes(4, c)
+        geo, fs = coal_boxes(4, c)
         if not use_native:
             monkeypatch.setattr(GeometryContext, "witness_fast",
                                 lambda self, a, b, planar=False: self._callback(a, b, planar))
