@@ -163,6 +163,7 @@ class NativeWitness:
         self.lib.gnpp_add_shape.argtypes = [i, d, d, pd, pd, i, i, pd, pd, pd, pi, d]
         self.lib.gnpp_add_pair.argtypes = [i, pd, i, i, pd, i, i]
         self.lib.gnpp_model.argtypes = [i, pd, pd]
+        self.lib.gnpp_queries.restype = ctypes.c_longlong
         self.external = ca.external("gnpp_witness", str(path))
         self._shapes: dict[int, tuple[Any, int]] = {}    # id(coal shape) -> (shape, native id)
         self._pairs: dict[tuple, tuple[int, Any]] = {}
@@ -253,6 +254,10 @@ class NativeWitness:
     def forget(self) -> None:
         self.lib.gnpp_forget()
 
+    def queries(self) -> int:
+        """Queries computed through casadi so far (memo hits not counted)."""
+        return int(self.lib.gnpp_queries())
+
 
 _LOADED: dict[str, NativeWitness | None] = {}
 
@@ -271,7 +276,9 @@ def load(start_build: bool = True) -> NativeWitness | None:
             lib = NativeWitness(path)
         except (OSError, RuntimeError):
             lib = None
-    elif path is not None and start_build:
+    elif path is not None:
+        if not start_build:
+            return None      # not remembered: a later load(start_build=True) still builds it
         _start_background_build()
     _LOADED["lib"] = lib
     return lib

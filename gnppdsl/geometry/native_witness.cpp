@@ -94,6 +94,7 @@ struct Pair {
 
 std::vector<Shape> g_shapes;
 std::vector<Pair> g_pairs;
+long long g_queries = 0;   // coal queries answered by gnpp_witness (not from the memo)
 
 coal::DistanceRequest& request() {
   static coal::DistanceRequest req;
@@ -416,6 +417,9 @@ void gnpp_forget(void) {
   for (Pair& p : g_pairs) p.filled = p.next = 0;
 }
 
+// Number of queries gnpp_witness computed (memo hits not counted): tests of the memo.
+long long gnpp_queries(void) { return g_queries; }
+
 // One query without the memo (tests).
 int gnpp_model(int pair, const double* x, double* out) {
   if (pair < 0 || pair >= (int)g_pairs.size()) return 1;
@@ -448,6 +452,7 @@ int gnpp_witness(const double** arg, double** res, casadi_int* iw, double* w, in
   } catch (...) {
     return 1;
   }
+  ++g_queries;
   int slot = P.next;
   std::memcpy(P.in[slot], x, sizeof(P.in[slot]));
   std::memcpy(P.out[slot], out, sizeof(out));

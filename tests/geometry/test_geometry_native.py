@@ -197,12 +197,30 @@ def test_the_context_hands_out_the_native_twin_for_single_shape_pairs(lib, ctx):
     assert abs(d - ref) < 1e-7
 
 
-def test_forget_empties_the_memo(lib, ctx):
-    """Repeated points answer from the memo with the same bytes; after `forget` they are
-    computed again (the same bytes again: the query is deterministic)."""
+def test_the_memo_answers_repeated_points_until_forget(lib, ctx):
+    """ipopt evaluates g, the Jacobian and the Hessian at one point: the repeats are memo
+    hits (no coal query) with the same bytes; after `forget` every point is queried again."""
     fn = lib.function("t_memo", ctx.body("box"), ctx.body("ball"), False)
-    xs = _inputs(np.random.default_rng(5), 10, 0.2)
+    xs = _inputs(np.random.default_rng(5), 3, 0.2)      # fewer points than the memo holds
+    n0 = lib.queries()
     first = [np.array(fn(x)).ravel().tobytes() for x in xs]
+    assert lib.queries() - n0 == 3
     assert [np.array(fn(x)).ravel().tobytes() for x in xs] == first
+    assert lib.queries() - n0 == 3
     lib.forget()
     assert [np.array(fn(x)).ravel().tobytes() for x in xs] == first
+    assert lib.queries() - n0 == 6
+
+
+def test_a_missing_library_is_not_remembered_by_a_look_without_build(tmp_path, monkeypatch):
+    """`describe()` (benchmark headers) looks without building; a later load that may build
+    must still see the library missing and start the build, not a remembered None."""
+    if native.library_path() is None:
+        pytest.skip("no C++ compiler or no coal headers")
+    monkeypatch.setenv("GNPP_NATIVE_CACHE", str(tmp_path))
+    monkeypatch.setattr(native, "_LOADED", {})
+    started = []
+    monkeypatch.setattr(native, "_start_background_build", lambda: started.append(1))
+    assert native.load(start_build=False) is None and "lib" not in native._LOADED
+    assert native.describe() == "python (native library not built)"
+    assert native.load() is None and started == [1]
