@@ -12,7 +12,7 @@ import pytest
 
 from gnppdsl.geometry.context import GeometryContext
 from gnppdsl.geometry.distance import ConvexBody, WitnessCallback
-from gnppdsl.geometry.kinematics import quat_to_rotation
+from geometry_poses import pair_inputs, rotation  # noqa: E402
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
 
 I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
@@ -28,31 +28,6 @@ def ctx():
             _obj("ball", "sphere", (0.07,)), _obj("box2", "box", (0.1, 0.4, 0.2)), _obj("disc", "circle", (0.1,))]
     robots = {"left": SceneRobot("left", "urdf", model="panda", ee="panda_hand_tcp", base=I7)}
     return GeometryContext(Scene("t", 3, robots, {o.name: o for o in objs}))
-
-
-def _R(q) -> np.ndarray:
-    import casadi as ca
-    return np.array(ca.Function("r", [], [quat_to_rotation(ca.DM(q))])()["o0"])
-
-
-def _inputs(rng, n: int, spread: float, planar: bool = False, aligned: bool = False) -> list[np.ndarray]:
-    xs = []
-    for _ in range(n):
-        parts = []
-        for _side in range(2):
-            if planar:
-                t = rng.uniform(-np.pi, np.pi)
-                R = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1.0]])
-                p = np.r_[rng.uniform(-spread, spread, 2), 0.0]
-            else:
-                q = rng.normal(size=4)
-                R = np.eye(3) if aligned else _R(q / np.linalg.norm(q))
-                p = rng.uniform(-spread, spread, 3)
-                if aligned:     # stacked boxes: parallel faces, edges and touching corners
-                    p = np.round(p, 2)
-            parts += [R.reshape(-1, order="F"), p]
-        xs.append(np.concatenate(parts))
-    return xs
 
 
 def _check(cb: WitnessCallback, xs: list[np.ndarray]) -> dict[int, int]:
@@ -78,7 +53,7 @@ def _check(cb: WitnessCallback, xs: list[np.ndarray]) -> dict[int, int]:
 def test_single_shape_path_equals_general_path(ctx, a, b):
     rng = np.random.default_rng(7)
     cb = ctx._callback(a, b, False)
-    modes = _check(cb, _inputs(rng, 150, 0.25) + _inputs(rng, 150, 0.12))
+    modes = _check(cb, pair_inputs(rng, 150, 0.25) + pair_inputs(rng, 150, 0.12))
     assert sum(modes.values()) >= 250
     if "cyl" not in (a, b):
         assert set(modes) & {0, 1, 2}, modes     # the feature model itself is exercised
@@ -86,14 +61,14 @@ def test_single_shape_path_equals_general_path(ctx, a, b):
 
 def test_single_shape_path_parallel_faces(ctx):
     rng = np.random.default_rng(3)
-    modes = _check(ctx._callback("box", "box2", False), _inputs(rng, 300, 0.3, aligned=True))
+    modes = _check(ctx._callback("box", "box2", False), pair_inputs(rng, 300, 0.3, aligned_every=1))
     assert sum(modes.values()) > 200
 
 
 @pytest.mark.parametrize("a,b", [("box", "box2"), ("box", "disc"), ("disc", "box2")])
 def test_single_shape_path_planar(ctx, a, b):
     rng = np.random.default_rng(11)
-    modes = _check(ctx._callback(a, b, True), _inputs(rng, 200, 0.3, planar=True))
+    modes = _check(ctx._callback(a, b, True), pair_inputs(rng, 200, 0.3, planar=True))
     assert set(modes) & {1, 2}, modes
 
 
@@ -102,12 +77,12 @@ def test_single_shape_path_with_placements(ctx):
     rng = np.random.default_rng(5)
     box, ball = ctx.body("box"), ctx.body("ball")
     M = np.eye(4)
-    M[:3, :3] = _R(np.array([0.2, -0.1, 0.3, 0.9]) / np.linalg.norm([0.2, -0.1, 0.3, 0.9]))
+    M[:3, :3] = rotation(np.array([0.2, -0.1, 0.3, 0.9]) / np.linalg.norm([0.2, -0.1, 0.3, 0.9]))
     M[:3, 3] = (0.05, -0.02, 0.03)
     a = ConvexBody("box_off", list(box.shapes), [M])
     b = ConvexBody("ball_off", list(ball.shapes), [np.linalg.inv(M)])
     cb = WitnessCallback("t_off", a, b)
-    modes = _check(cb, _inputs(rng, 200, 0.2))
+    modes = _check(cb, pair_inputs(rng, 200, 0.2))
     assert set(modes) & {0, 1, 2}, modes
 
 
@@ -116,7 +91,7 @@ def test_callback_uses_the_fast_path_and_agrees_with_coal(ctx):
     import casadi as ca
     cb = ctx._callback(("link", "left", "panda_hand"), "box", False)
     rng = np.random.default_rng(2)
-    xs = _inputs(rng, 20, 0.2)
+    xs = pair_inputs(rng, 20, 0.2)
     calls = cb.calls
     for x in xs:
         o = np.array(cb(ca.DM(x))).ravel()
@@ -131,7 +106,7 @@ def test_memo_answers_repeated_points_with_the_same_bytes(ctx):
     cb = WitnessCallback("t_memo", ctx.body("box"), ctx.body("box2"))
     xs = ca.SX.sym("x", 24)
     f = ca.Function("f", [xs], [cb(xs)])
-    X = _inputs(np.random.default_rng(4), 30, 0.25)
+    X = pair_inputs(np.random.default_rng(4), 30, 0.25)
     first = [np.array(f(x)).ravel() for x in X]
     assert (cb.calls, cb.hits) == (30, 0)
     again = [np.array(f(x)).ravel() for x in X]

@@ -21,7 +21,7 @@ from gnppdsl.geometry import native
 from gnppdsl.geometry.context import GeometryContext
 from gnppdsl.geometry.distance import ConvexBody, WitnessCallback
 from gnppdsl.geometry.features import model_expression
-from gnppdsl.geometry.kinematics import quat_to_rotation
+from geometry_poses import pair_inputs, rotation  # noqa: E402
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
 
 I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
@@ -53,31 +53,6 @@ def ctx():
             _obj("disc", "circle", (0.1,))]
     robots = {"left": SceneRobot("left", "urdf", model="panda", ee="panda_hand_tcp", base=I7)}
     return GeometryContext(Scene("t", 3, robots, {o.name: o for o in objs}))
-
-
-def _R(q) -> np.ndarray:
-    return np.array(ca.Function("r", [], [quat_to_rotation(ca.DM(q))])()["o0"])
-
-
-def _inputs(rng, n: int, spread: float, planar: bool = False) -> list[np.ndarray]:
-    xs = []
-    for k in range(n):
-        parts = []
-        for _side in range(2):
-            if planar:
-                t = rng.uniform(-np.pi, np.pi)
-                R = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1.0]])
-                p = np.r_[rng.uniform(-spread, spread, 2), 0.0]
-            else:
-                q = rng.normal(size=4)
-                aligned = k % 3 == 0          # parallel faces, edges, stacked boxes
-                R = np.eye(3) if aligned else _R(q / np.linalg.norm(q))
-                p = rng.uniform(-spread, spread, 3)
-                if aligned:
-                    p = np.round(p, 2)
-            parts += [R.reshape(-1, order="F"), p]
-        xs.append(np.concatenate(parts))
-    return xs
 
 
 _MODEL = None
@@ -133,14 +108,14 @@ def test_boxes_spheres_and_placements_agree_with_the_python_callback(lib, ctx):
     box, slab, ball = ctx.body("box"), ctx.body("slab"), ctx.body("ball")
     seen: dict[int, int] = {}
     for a, b in ((box, slab), (slab, box), (box, ball), (ball, box), (box, box)):
-        for mode, k in _compare(lib, a, b, _inputs(rng, 150, 0.25), exact=True).items():
+        for mode, k in _compare(lib, a, b, pair_inputs(rng, 150, 0.25, aligned_every=3), exact=True).items():
             seen[mode] = seen.get(mode, 0) + k
     M = np.eye(4)
-    M[:3, :3] = _R(np.array([0.2, -0.1, 0.3, 0.9]) / np.linalg.norm([0.2, -0.1, 0.3, 0.9]))
+    M[:3, :3] = rotation(np.array([0.2, -0.1, 0.3, 0.9]) / np.linalg.norm([0.2, -0.1, 0.3, 0.9]))
     M[:3, 3] = (0.05, -0.02, 0.03)
     off_a = ConvexBody("box_off", list(box.shapes), [M])
     off_b = ConvexBody("ball_off", list(ball.shapes), [np.linalg.inv(M)])
-    _compare(lib, off_a, off_b, _inputs(rng, 150, 0.2), exact=True)
+    _compare(lib, off_a, off_b, pair_inputs(rng, 150, 0.2, aligned_every=3), exact=True)
     # face-vertex / edge-edge, edge-vertex and vertex-vertex (sphere) models all occur
     assert {0, 1, 2} <= set(seen), seen
 
@@ -150,15 +125,15 @@ def test_panda_link_hulls_agree_with_the_python_callback(lib, ctx):
     for link in ("panda_hand", "panda_link5", "panda_leftfinger"):
         hull = ctx.body(("link", "left", link))
         for other in (ctx.body("box"), ctx.body("slab"), ctx.body("ball")):
-            _compare(lib, hull, other, _inputs(rng, 80, 0.2))
-        _compare(lib, ctx.body("cyl"), hull, _inputs(rng, 60, 0.2), curved=True)
+            _compare(lib, hull, other, pair_inputs(rng, 80, 0.2, aligned_every=3))
+        _compare(lib, ctx.body("cyl"), hull, pair_inputs(rng, 60, 0.2, aligned_every=3), curved=True)
 
 
 def test_planar_bodies_agree_with_the_python_callback(lib, ctx):
     rng = np.random.default_rng(2)
     pairs = (("box", "slab"), ("disc", "box"), ("cyl", "disc"), ("box", "cyl"))
     for a, b in pairs:
-        _compare(lib, ctx.body(a, True), ctx.body(b, True), _inputs(rng, 120, 0.3, planar=True), planar=True)
+        _compare(lib, ctx.body(a, True), ctx.body(b, True), pair_inputs(rng, 120, 0.3, planar=True), planar=True)
 
 
 def test_the_native_model_is_coal_distance(lib, ctx):
@@ -168,7 +143,7 @@ def test_the_native_model_is_coal_distance(lib, ctx):
     fn = lib.function("t_grad", box, slab, False)
     req = coal.DistanceRequest()
     req.enable_signed_distance = True
-    for xv in _inputs(np.random.default_rng(3), 40, 0.25):
+    for xv in pair_inputs(np.random.default_rng(3), 40, 0.25, aligned_every=3):
         o = np.array(fn(xv)).ravel()
         Ta = coal.Transform3s(xv[0:9].reshape(3, 3, order="F"), xv[9:12])
         Tb = coal.Transform3s(xv[12:21].reshape(3, 3, order="F"), xv[21:24])
@@ -201,7 +176,7 @@ def test_the_memo_answers_repeated_points_until_forget(lib, ctx):
     """ipopt evaluates g, the Jacobian and the Hessian at one point: the repeats are memo
     hits (no coal query) with the same bytes; after `forget` every point is queried again."""
     fn = lib.function("t_memo", ctx.body("box"), ctx.body("ball"), False)
-    xs = _inputs(np.random.default_rng(5), 3, 0.2)      # fewer points than the memo holds
+    xs = pair_inputs(np.random.default_rng(5), 3, 0.2, aligned_every=3)      # fewer points than the memo holds
     n0 = lib.queries()
     first = [np.array(fn(x)).ravel().tobytes() for x in xs]
     assert lib.queries() - n0 == 3
