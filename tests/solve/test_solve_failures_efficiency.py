@@ -123,13 +123,44 @@ def test_orders_agree_and_are_checked_independently(order):
 
 
 def test_full_first_costs_one_nlp_on_a_feasible_first_plan():
-    """p2's first plan is feasible: the full graph-NLP alone decides it (no relaxation solved)."""
+    """p2's first plan is feasible: the full graph-NLP alone decides it (no relaxation solved).
+    relaxed_first checks its relaxation levels first, but the plan's initial guess (blocks on
+    their spots, grippers at home) satisfies them: they are answered without an NLP."""
     c = compiled("p2_two_blocks")
-    full = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, switches="trn"))
+    full = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, switches="trn",
+                                                        order="full_first"))
     relaxed = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, switches="trn",
                                                            order="relaxed_first"))
     assert full.solved and relaxed.solved and full.stats.plans == relaxed.stats.plans == 1
-    assert full.stats.nlp_solves == 1 < relaxed.stats.nlp_solves
+    assert full.stats.nlp_solves == 1 and full.stats.reused_solutions == 0
+    assert relaxed.stats.nlp_solves == 1 and relaxed.stats.reused_solutions >= 1
+    check_solution(c, relaxed)
+
+
+def test_a_graph_its_start_satisfies_is_feasible_without_an_nlp():
+    """`known_solution` answers from the start an NLP would get (earlier values completed by the
+    initial guess) only when the factors really hold there: re-evaluated here with the numpy
+    evaluator, and refused once the guess is moved off a block's spot."""
+    from gnppdsl.nlp.evaluate import max_violation
+    from gnppdsl.nlp.graph import GraphNLP
+
+    c = compiled("p1_one_block")
+    states = [c.task.initial]
+    variables = c.factory.variables(states)
+    guess = {v: np.asarray(c.factory.initial_guess(v), float) for v in variables
+             if c.factory.initial_guess(v) is not None}
+    graph = GraphNLP.from_factors(c.factory.factors(states), variables, initial_guess=guess)
+    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    r = checker.known_solution(graph)
+    assert r is not None and r.feasible and set(r.values) == set(graph.variables)
+    assert max_violation(graph.factor_instances, r.values, c.geometry)[0] <= 1e-6
+    assert run.nlp_calls == 0
+
+    pose = next(v for v in graph.variables if v.kind == "pose")
+    moved = {**guess, pose: guess[pose] + 0.05}
+    off = GraphNLP.from_factors(c.factory.factors(states), variables, initial_guess=moved)
+    assert loop._Checker(run, run.new_solver(), off, use_db=False).known_solution(off) is None
 
 
 def test_bad_order_is_a_user_error():

@@ -57,8 +57,11 @@ def test_staged_answers_are_checked_independently(name, n):
         check_conflict_infeasible(c, conflict)
 
 
-def _problem(tmp_path, solver_line: str) -> Path:
+def _problem(tmp_path, solver_line: str, domain_order: bool = True) -> Path:
     dom = (PLANAR / "domain.pntc").read_text()
+    if not domain_order:
+        assert "order = staged  " in dom
+        dom = dom.replace("order = staged  ", "")
     (tmp_path / "domain.pntc").write_text(dom)
     prob = (PLANAR / "p1_one_block.pntc").read_text()
     (tmp_path / "p1_one_block.pntc").write_text(prob + "\n" + solver_line + "\n")
@@ -67,13 +70,23 @@ def _problem(tmp_path, solver_line: str) -> Path:
     return tmp_path / "p1_one_block.pntc"
 
 
+@pytest.fixture(autouse=True)
+def _dirs(tmp_path):
+    for sub in ("p", "q"):
+        (tmp_path / sub).mkdir()
+
+
 def test_order_in_a_solver_block_reaches_the_options_and_the_command_line_wins(tmp_path):
     c = load_and_compile(str(_problem(tmp_path, "solver { order = staged }")))
     assert c.problem.settings.order == "staged"
     assert SolveOptions.from_settings(c.problem.settings).order == "staged"
     assert SolveOptions.from_settings(c.problem.settings, order="relaxed_first").order == "relaxed_first"
-    # without the key: the solver's default
-    plain = load_and_compile(str(PLANAR / "p1_one_block.pntc"))
+    # the problem's block wins over its domain's (the planar domain says staged)
+    c = load_and_compile(str(_problem(tmp_path / "p", "solver { order = full_first }")))
+    assert SolveOptions.from_settings(c.problem.settings).order == "full_first"
+    assert load_and_compile(str(PLANAR / "p1_one_block.pntc")).problem.settings.order == "staged"
+    # without the key anywhere: the solver's default
+    plain = load_and_compile(str(_problem(tmp_path / "q", "", domain_order=False)))
     assert plain.problem.settings.order is None
     assert SolveOptions.from_settings(plain.problem.settings).order == SolveOptions().order
 

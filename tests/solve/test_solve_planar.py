@@ -106,7 +106,8 @@ def test_screened_relaxation_levels_keep_conflicts_real():
     runs = {}
     for screen in (0.0, 1e-4):
         res = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, switches="trn", seed=1,
-                                                           time_limit=60, screen_tolerance=screen))
+                                                           order="full_first", time_limit=60,
+                                                           screen_tolerance=screen))
         assert res.solved and res.stats.N == 6
         check_solution(c, res)
         for conflict in res.conflicts:
