@@ -98,10 +98,11 @@ def test_gnpp_needs_fewer_nlps_than_oneway_when_branching_grows():
 
 
 def test_screened_relaxation_levels_keep_conflicts_real():
-    """t1_swap, seed 1: the full graph's convergence point leaves residuals of ~1e-5 on grasp
-    factors, so without screening the relaxations without collisions are solved only to be found
-    feasible. With screening (default) they are skipped: fewer NLPs, the same N, and every
-    conflict is still confirmed infeasible from many starts."""
+    """t1_swap, seed 1, full_first: the full graph's convergence point leaves residuals of ~1e-5
+    on grasp factors, so without screening the relaxations without collisions are checked only
+    to be found feasible. With screening (default) they are skipped: no more NLPs (since start
+    certificates, those levels cost no NLP either: the initial guess satisfies them), the same
+    N, and every conflict is still confirmed infeasible from many starts."""
     c = compiled("t1_swap")
     runs = {}
     for screen in (0.0, 1e-4):
@@ -114,4 +115,4 @@ def test_screened_relaxation_levels_keep_conflicts_real():
             check_conflict_infeasible(c, conflict)
         runs[screen] = res.stats
     assert runs[0.0].screened_levels == 0 < runs[1e-4].screened_levels
-    assert runs[1e-4].nlp_solves < runs[0.0].nlp_solves
+    assert runs[1e-4].nlp_solves <= runs[0.0].nlp_solves
