@@ -680,10 +680,14 @@ class _Checker:
 
     def start_point(self, g: Any) -> dict | None:
         """The values of this plan's earlier feasible solves, completed by the initial guess of
-        the plan's graph; None when it adds nothing to those values for g (already tried)."""
+        the plan's graph; None when it adds nothing to those values for g (already tried), or
+        when it would complete a trajectory: a certified graph's values join `self.values`,
+        where a trajectory means "solved", so `solve` would then skip the keyframes-first
+        machinery for every later graph holding it (lab5 seed 8: three slices of 370-640
+        factors solved jointly, 135 s, where their motions had been solved phase by phase)."""
         guess = self.graph.initial_guess
         missing = [v for v in g.variables if v not in self.values]
-        if not missing or any(v not in guess for v in missing):
+        if not missing or any(v not in guess or TRAJ in v.tags or v.waypoints for v in missing):
             return None
         return {**{v: guess[v] for v in missing}, **{v: self.values[v] for v in g.variables if v in self.values}}
 

@@ -234,3 +234,27 @@ def test_verdicts_without_nlps_are_right(name):
             assert worst <= 1e-6 and loop.bound_violation(sub.variables, verdict.values) <= 1e-6
         else:
             assert not strict.solve(sub, seed=3).feasible, sub.describe()
+
+
+def test_no_start_certificate_for_a_trajectory():
+    """A trajectory's initial guess (the arm resting at home) satisfies its own limits, speed,
+    smoothness and clearance factors, but it must not be certified: certified values join the
+    plan's solved values, and a trajectory found there is taken as solved, so later graphs
+    holding it would skip the keyframes-first solve (lab5 seed 8 timed out that way)."""
+    from gnppdsl.nlp.evaluate import max_violation
+    from gnppdsl.nlp.graph import GraphNLP
+
+    c = load_and_compile(str(Path(__file__).resolve().parents[2] / "examples" / "lab" / "lab1.pntc"))
+    states = [c.task.initial, c.task.initial]
+    variables = c.factory.variables(states)
+    guess = {v: np.asarray(c.factory.initial_guess(v), float) for v in variables
+             if c.factory.initial_guess(v) is not None}
+    graph = GraphNLP.from_factors(c.factory.factors(states), variables, initial_guess=guess)
+    path = next(v for v in graph.variables if v.waypoints)
+    sub = graph.subgraph(variables=[path])
+    assert sub.n_factors > 0
+    assert max_violation(sub.factor_instances, {path: guess[path]}, c.geometry)[0] <= 1e-9
+    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    assert checker.start_point(sub) is None and checker.known_solution(sub) is None
+    assert path not in checker.values
