@@ -261,6 +261,11 @@ def canonical(obj: Any) -> str:
 # ---------------------------------------------------------------------------------------------
 # trajectories: warm start by interpolation between the mode switches (Appendix C)
 # ---------------------------------------------------------------------------------------------
+def is_trajectory(v: VarInstance) -> bool:
+    """A motion variable (tagged `traj` or with waypoints), solved after the mode switches."""
+    return TRAJ in v.tags or bool(v.waypoints)
+
+
 def keyframe_of(traj: VarInstance, candidates: Iterable[VarInstance],
                 neighbours: Iterable[VarInstance] = ()) -> str | None:
     """The variable key whose values at steps i and i+1 a trajectory at step i moves between:
@@ -320,8 +325,8 @@ class _Checker:
     """
 
     max_points = 3                       # infeasible convergence points kept for `known_solution`
-    local_first = False                  # set by `evaluate` around the levels that warm-start the
-                                         # full graph: see `local_solve`
+    local_first = False                  # set by `evaluate` around the first solves up to and
+                                         # including the full graph's: see `local_solve`
 
     def __init__(self, run: "_Run", solver: Any, graph: Any, use_db: bool):
         self.run, self.solver, self.graph, self.use_db = run, solver, graph, use_db
@@ -343,7 +348,7 @@ class _Checker:
             self.results[key] = known
             self.values.update(known.values)      # a solution like any other: warm starts
             return known
-        trajs = [v for v in g.variables if TRAJ in v.tags or v.waypoints]
+        trajs = [v for v in g.variables if is_trajectory(v)]
         warm = {v: self.values[v] for v in g.variables if v in self.values}
         if trajs and any(v not in self.values for v in trajs):
             modes = g.apply_relaxation({TRAJ}, "modes")
@@ -666,7 +671,10 @@ class _Checker:
         NLPs, p5: 9 -> 6)."""
         from gnppdsl.nlp.feasibility import FeasibilityResult
 
-        for point in (self.values, *self.points, self.start_point(g)):
+        sources = [(self.values, "earlier solutions satisfy it"),
+                   *((p, "an earlier convergence point satisfies it") for p in self.points),
+                   (self.start_point(g), "its start (earlier solutions and the initial guess) satisfies it")]
+        for point, why in sources:
             if not point or any(v not in point for v in g.variables):
                 continue
             values = {v: point[v] for v in g.variables}
@@ -675,7 +683,7 @@ class _Checker:
                 continue
             self.run.stats.reused_solutions += 1
             per = {r: 0.0 for r in g.factor_refs}
-            return FeasibilityResult(True, values, per, worst, 0.0, 0.0, 0, "earlier solutions satisfy it", 0)
+            return FeasibilityResult(True, values, per, worst, 0.0, 0.0, 0, why, 0)
         return None
 
     def start_point(self, g: Any) -> dict | None:
@@ -687,7 +695,7 @@ class _Checker:
         factors solved jointly, 135 s, where their motions had been solved phase by phase)."""
         guess = self.graph.initial_guess
         missing = [v for v in g.variables if v not in self.values]
-        if not missing or any(v not in guess or TRAJ in v.tags or v.waypoints for v in missing):
+        if not missing or any(v not in guess or is_trajectory(v) for v in missing):
             return None
         return {**{v: guess[v] for v in missing}, **{v: self.values[v] for v in g.variables if v in self.values}}
 

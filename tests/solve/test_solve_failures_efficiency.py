@@ -142,24 +142,20 @@ def test_a_graph_its_start_satisfies_is_feasible_without_an_nlp():
     initial guess) only when the factors really hold there: re-evaluated here with the numpy
     evaluator, and refused once the guess is moved off a block's spot."""
     from gnppdsl.nlp.evaluate import max_violation
-    from gnppdsl.nlp.graph import GraphNLP
 
     c = compiled("p1_one_block")
-    states = [c.task.initial]
-    variables = c.factory.variables(states)
-    guess = {v: np.asarray(c.factory.initial_guess(v), float) for v in variables
-             if c.factory.initial_guess(v) is not None}
-    graph = GraphNLP.from_factors(c.factory.factors(states), variables, initial_guess=guess)
     run = loop._Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    graph = run.build_graph([c.task.initial])          # with the factory's initial guess
     checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
     r = checker.known_solution(graph)
     assert r is not None and r.feasible and set(r.values) == set(graph.variables)
+    assert r.status.startswith("its start")
     assert max_violation(graph.factor_instances, r.values, c.geometry)[0] <= 1e-6
     assert run.nlp_calls == 0
 
-    pose = next(v for v in graph.variables if v.kind == "pose")
-    moved = {**guess, pose: guess[pose] + 0.05}
-    off = GraphNLP.from_factors(c.factory.factors(states), variables, initial_guess=moved)
+    off = run.build_graph([c.task.initial])
+    pose = next(v for v in off.variables if v.kind == "pose")
+    off.initial_guess[pose] = off.initial_guess[pose] + 0.05
     assert loop._Checker(run, run.new_solver(), off, use_db=False).known_solution(off) is None
 
 
@@ -242,19 +238,14 @@ def test_no_start_certificate_for_a_trajectory():
     plan's solved values, and a trajectory found there is taken as solved, so later graphs
     holding it would skip the keyframes-first solve (lab5 seed 8 timed out that way)."""
     from gnppdsl.nlp.evaluate import max_violation
-    from gnppdsl.nlp.graph import GraphNLP
 
     c = load_and_compile(str(Path(__file__).resolve().parents[2] / "examples" / "lab" / "lab1.pntc"))
-    states = [c.task.initial, c.task.initial]
-    variables = c.factory.variables(states)
-    guess = {v: np.asarray(c.factory.initial_guess(v), float) for v in variables
-             if c.factory.initial_guess(v) is not None}
-    graph = GraphNLP.from_factors(c.factory.factors(states), variables, initial_guess=guess)
+    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    graph = run.build_graph([c.task.initial, c.task.initial])
     path = next(v for v in graph.variables if v.waypoints)
     sub = graph.subgraph(variables=[path])
     assert sub.n_factors > 0
-    assert max_violation(sub.factor_instances, {path: guess[path]}, c.geometry)[0] <= 1e-9
-    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    assert max_violation(sub.factor_instances, {path: graph.initial_guess[path]}, c.geometry)[0] <= 1e-9
     checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
     assert checker.start_point(sub) is None and checker.known_solution(sub) is None
     assert path not in checker.values
