@@ -58,6 +58,7 @@ def test_staged_answers_are_checked_independently(name, n):
 
 
 def _problem(tmp_path, solver_line: str, domain_order: bool = True) -> Path:
+    tmp_path.mkdir(parents=True, exist_ok=True)
     dom = (PLANAR / "domain.pntc").read_text()
     if not domain_order:
         assert "order = staged  " in dom
@@ -69,11 +70,6 @@ def _problem(tmp_path, solver_line: str, domain_order: bool = True) -> Path:
         (tmp_path / extra.name).write_text(extra.read_text())
     return tmp_path / "p1_one_block.pntc"
 
-
-@pytest.fixture(autouse=True)
-def _dirs(tmp_path):
-    for sub in ("p", "q"):
-        (tmp_path / sub).mkdir()
 
 
 def test_order_in_a_solver_block_reaches_the_options_and_the_command_line_wins(tmp_path):
