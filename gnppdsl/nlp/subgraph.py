@@ -26,6 +26,7 @@ point on g[t_f, t_l]; when the check answered with a plain bool, `solve` is call
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Sequence
 
@@ -117,34 +118,82 @@ def _free_value(v: VarInstance, guess) -> np.ndarray:
     return np.clip(x, lo, hi)
 
 
-def binary_search_time(graph: GraphNLP, is_feasible: Callable[[GraphNLP], bool]
+def binary_search_time(graph: GraphNLP, is_feasible: Callable[[GraphNLP], bool],
+                       hint: Callable[[GraphNLP], tuple[int, int] | None] | None = None
                        ) -> tuple[bool, tuple[int, int] | None]:
     """Double binary search on the time index (Sec. VI-A), O(log n) feasibility checks.
 
     Returns (True, None) if `graph` is feasible, else (False, (f, l)) with l the minimum upper
     index such that G[s_lo .. s_l] is infeasible and then f the maximum lower index such that
     G[s_f .. s_l] is infeasible. Correct by monotone infeasibility (Property 4.4): slices grow
-    with l and shrink with f."""
+    with l and shrink with f, so any choice of pivots finds the same (f, l).
+
+    `hint(g)` (optional) is the step range of the factors violated at the convergence point of
+    g's last solve, when known (`violated_steps`). Where the solver left the violation is where
+    the contradiction usually is, so the pivot of each bisection is first taken there: G[lo..e]
+    with e the last violated step, then G[s..l] with s the first, whenever that slice is no
+    larger than the midpoint's. Why: the midpoint halves of a long plan are the largest NLPs of
+    the search (Lab 5: the 6-step half of a 10-step mode-switch graph, 3 starts, 19 s) while
+    the contradiction sits in 2-3 steps. A hinted pivot whose slice is infeasible shrinks the
+    range at least as much as the midpoint; the first one found feasible ends the hints (a
+    misleading convergence point), so the search stays within log2(n) + 1 checks per index."""
     steps = graph.steps
     if steps is None or is_feasible(graph):
         return True, None
     lo, hi = steps
+    use_hint = hint is not None
+
+    def slice_(first: int, last: int) -> GraphNLP:
+        return graph if (first, last) == (lo, hi) else graph.time_slice(first, last)
+
     a, b = lo, hi                       # invariant: G[lo..b] infeasible
     while a < b:
         mid = (a + b) // 2
+        rng = hint(slice_(lo, b)) if use_hint else None
+        hinted = rng is not None and a <= rng[1] < mid
+        if hinted:
+            mid = rng[1]
         if is_feasible(graph.time_slice(lo, mid)):
             a = mid + 1
+            use_hint = use_hint and not hinted
         else:
             b = mid
     last = b
     a, b = lo, last                     # invariant: G[a..last] infeasible
     while a < b:
         mid = (a + b + 1) // 2
+        rng = hint(slice_(a, last)) if use_hint else None
+        hinted = rng is not None and mid < rng[0] <= b
+        if hinted:
+            mid = rng[0]
         if is_feasible(graph.time_slice(mid, last)):
             b = mid - 1
+            use_hint = use_hint and not hinted
         else:
             a = mid
     return False, (a, last)
+
+
+HINT_SHARE = 0.1    # `violated_steps`: factors violated by at least this share of the worst one
+
+
+def violated_steps(graph: GraphNLP, result: "bool | FeasibilityResult | None",
+                   tolerance: float) -> tuple[int, int] | None:
+    """(first, last) step of the factors violated at the convergence point of `result`, the
+    solve of `graph`, by at least HINT_SHARE of the largest violation (None without a
+    convergence point): the time search's hint. Why the share: a solve stopped on a stall
+    leaves residuals of 1e-5..1e-3 all along the plan (Lab 5: placement rows at every step)
+    while the contradiction carries the violation (2.8e-2 on the grasp of the step that fails)."""
+    if not isinstance(result, FeasibilityResult) or result.feasible:
+        return None
+    worst = result.max_violation
+    if not math.isfinite(worst):
+        return None
+    floor = max(tolerance, HINT_SHARE * worst)
+    fs = [graph.factor(r) for r, v in result.violations.items() if v >= floor and r in graph.graph]
+    if not fs:
+        return None
+    return min(f.step for f in fs), max(f.step + f.span - 1 for f in fs)
 
 
 def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
@@ -269,7 +318,8 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
 
     def time_search(g: GraphNLP) -> tuple[bool, tuple[int, int] | None]:
         """Alg. 1's BinarySearchTime, with the second opinion on a kept whole range."""
-        feasible, rng = binary_search_time(g, checker)
+        feasible, rng = binary_search_time(
+            g, checker, lambda s: violated_steps(s, checker.memo.get(s.signature()), tol))
         if not feasible and recheck is not None and _whole_range_failed(g, rng, checker):
             second = recheck(g)
             if _ok(second):

@@ -209,6 +209,12 @@ def test_badly_scaled_row_far_from_start_is_not_a_false_conflict():
     assert r.feasible and r.values[v][0] == pytest.approx(10.0, abs=1e-3)
     r = FeasibilitySolver(options=SolverOptions(restarts=0, polish=False)).solve(GraphNLP([f]))
     assert not r.feasible        # documents why the polish step exists
+    # a one-start verdict that is confirmed later (the solve loop's plan graph) skips the final
+    # polish of a far-off point: one ipopt run; the confirmation's solve polishes
+    s = FeasibilitySolver(options=SolverOptions(restarts=0, final_polish=False))
+    assert not s.solve(GraphNLP([f])).feasible and s.solves == 1
+    s.options.final_polish = True
+    assert s.solve(GraphNLP([f])).feasible and s.solves == 3
 
 
 def test_assembled_nlp_cache_is_bounded():

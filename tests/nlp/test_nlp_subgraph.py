@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
 import pytest
 
 from gnppdsl.compile.factors import VarInstance
@@ -57,6 +58,65 @@ def test_binary_search_counts_checks_with_an_oracle():
         feasible, rng = binary_search_time(g, oracle)
         assert not feasible and rng == (at, at + 1)
         assert len(calls) <= 1 + 2 * math.ceil(math.log2(n + 1))
+
+
+def _conflict_oracle(at, calls):
+    def oracle(sub):
+        calls.append(sub.steps)
+        names = {sub.factor(r).template for r in sub.factor_refs}
+        return not {"toy.left", "toy.right"} <= names or \
+            not any(sub.factor(r).template == "toy.move" and sub.factor(r).step == at
+                    for r in sub.factor_refs)
+    return oracle
+
+
+@pytest.mark.parametrize("n,at", [(64, 3), (64, 60), (33, 0), (100, 50), (10, 1), (10, 8)])
+def test_hinted_search_finds_the_same_range_within_the_same_bound(n, at):
+    """Any hint, right or misleading, gives the same (f, l) as the plain search, within
+    log2(n) + 1 checks per index; a hint naming the conflict's steps goes straight to them."""
+    vs, fs = chain(n, conflict_at=at)
+    g = GraphNLP(fs)
+    plain = []
+    expected = binary_search_time(g, _conflict_oracle(at, plain))
+    assert expected == (False, (at, at + 1))
+    bound = 1 + 2 * (math.ceil(math.log2(n + 1)) + 1)
+    rng = np.random.default_rng(n + at)
+    hints = [lambda s: (at, at + 1), lambda s: None, lambda s: s.steps]
+    for _ in range(20):             # misleading hints inside the slice asked about
+        hints.append(lambda s, u=rng.uniform(size=2): tuple(sorted(
+            int(s.steps[0] + x * (s.steps[1] - s.steps[0])) for x in u)))
+    for hint in hints:
+        calls = []
+        assert binary_search_time(g, _conflict_oracle(at, calls), hint) == expected
+        assert len(calls) <= bound
+    right = []
+    binary_search_time(g, _conflict_oracle(at, right), lambda s: (at, at + 1))
+    # the first probes are the hinted slices G[0..at+1] and G[at..at+1], no larger halves
+    assert right[1] == (0, at + 1) or at + 1 >= n // 2
+    assert max(b - a for a, b in right[1:]) <= max(b - a for a, b in plain[1:])
+
+
+def test_violated_steps_reads_the_large_violations_of_a_convergence_point():
+    """The hint is the step range of the factors carrying the violation at x*, not of every
+    residual left by a solve that stopped early."""
+    from gnppdsl.nlp.feasibility import FeasibilityResult
+    from gnppdsl.nlp.subgraph import violated_steps
+
+    vs, fs = chain(8, conflict_at=5)
+    g = GraphNLP(fs)
+    refs = {(g.factor(r).template, g.factor(r).step): r for r in g.factor_refs}
+    viol = {r: 0.0 for r in g.factor_refs}
+    viol[refs[("toy.move", 0)]] = 1e-4            # small residuals along the plan
+    viol[refs[("toy.move", 7)]] = 2e-4
+    viol[refs[("toy.move", 5)]] = 0.3             # the contradiction: steps 5..6
+    viol[refs[("toy.right", 6)]] = 0.2
+    r = FeasibilityResult(False, {}, viol, 0.3, 0.5, 0.0, 10, "stall")
+    assert violated_steps(g, r, TOL) == (5, 6)
+    assert violated_steps(g, True, TOL) is None
+    assert violated_steps(g, FeasibilityResult(True, {}, {}, 0.0, 0.0, 0.0, 1, "ok"), TOL) is None
+    # a real search on the chain, hinted by the solver's own convergence points, is exact
+    res = find_infeasible_subgraph(g, [], "tn", solver=FeasibilitySolver())
+    assert res.time_range == (5, 6) and confirm_infeasible(res.subgraph)
 
 
 def test_binary_search_feasible_graph():
