@@ -67,9 +67,10 @@ class SolverOptions:
     polish_below: float = 1e-3     # polish at once (before random restarts) a start that ends
                                    # this close to feasible: a stall near a solution, which
                                    # restarts from random points only repeat from farther away
-    final_polish: bool = True      # polish the best point after the last start when it ends
-                                   # farther than polish_below (off for a one-start verdict
-                                   # that is confirmed later: the confirmation polishes)
+    final_polish_below: float = math.inf   # polish the best point after the last start when
+                                   # its violation is below this (the solve loop lowers it for
+                                   # a one-start verdict that is confirmed later: there the
+                                   # confirmation polishes)
 
     def nlpsol_options(self) -> dict:
         if self.plugin == "sqpmethod":
@@ -639,7 +640,7 @@ class FeasibilitySolver:
                 break
         if best is None:
             return None
-        if best[2] > tol and self.options.polish and self.options.final_polish and not polished:
+        if tol < best[2] < self.options.final_polish_below and self.options.polish and not polished:
             # The pull towards the start can outweigh the L1 penalty of a badly scaled row
             # (gradient below rho): re-solve the best point with a much weaker pull before
             # believing an infeasible verdict.

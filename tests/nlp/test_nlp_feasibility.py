@@ -211,9 +211,9 @@ def test_badly_scaled_row_far_from_start_is_not_a_false_conflict():
     assert not r.feasible        # documents why the polish step exists
     # a one-start verdict that is confirmed later (the solve loop's plan graph) skips the final
     # polish of a far-off point: one ipopt run; the confirmation's solve polishes
-    s = FeasibilitySolver(options=SolverOptions(restarts=0, final_polish=False))
+    s = FeasibilitySolver(options=SolverOptions(restarts=0, final_polish_below=1e-3))
     assert not s.solve(GraphNLP([f])).feasible and s.solves == 1
-    s.options.final_polish = True
+    s.options.final_polish_below = 1e-1       # the start ends at 1e-2
     assert s.solve(GraphNLP([f])).feasible and s.solves == 3
 
 

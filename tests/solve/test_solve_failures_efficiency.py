@@ -249,3 +249,58 @@ def test_no_start_certificate_for_a_trajectory():
     checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
     assert checker.start_point(sub) is None and checker.known_solution(sub) is None
     assert path not in checker.values
+
+
+@pytest.mark.parametrize("name", ["p5_handover", "p6_clutter"])
+def test_a_slice_starts_from_the_convergence_point_that_violates_it_least(name):
+    """After the plan's graph fails, its slices are solved from a convergence point x* of an
+    earlier failed solve when x* violates them less than the earlier solutions (with the
+    initial guess) do: checked against the numpy evaluator, and the verdicts reached from
+    there are checked on their own (feasible: the values re-evaluated; infeasible: many random
+    starts)."""
+    from gnppdsl.nlp.evaluate import max_violation
+    from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+
+    c = compiled(name)
+    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings, switches="trn"), None)
+    plan, graph = _first_plan_graph(run)
+    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    assert not checker.solve(graph).feasible
+    starts = []
+    inner = checker.solver.solve
+
+    def spy(g, warm_start=None, **kw):
+        starts.append(dict(warm_start or {}))
+        return inner(g, warm_start=warm_start, **kw)
+
+    def violation(s, point):
+        return max_violation(s.factor_instances, {v: point[v] for v in s.variables}, c.geometry)[0]
+
+    checker.solver.solve = spy
+    lo, hi = graph.steps
+    used = 0
+    strict = FeasibilitySolver(c.geometry, SolverOptions(restarts=6, noise=1.0))
+    for a in range(lo, hi + 1):
+        for b in range(a, hi + 1):
+            s = graph.time_slice(a, b)
+            if s.n_factors == 0 or s.signature() in checker.results:
+                continue
+            points = list(checker.points)
+            own = checker.start_point(s) or dict(checker.values)
+            own_viol = violation(s, own) if all(v in own for v in s.variables) else np.inf
+            starts.clear()
+            verdict = checker.solve(s)
+            if not starts:
+                continue                       # answered without an NLP
+            warm = starts[0]
+            for p in points:
+                if all(np.array_equal(warm.get(v), p[v]) for v in s.variables) and \
+                        any(not np.array_equal(p[v], own.get(v)) for v in s.variables):
+                    used += 1
+                    assert 1e-6 < violation(s, p) < own_viol
+                    break
+            if verdict.feasible:
+                assert max_violation(s.factor_instances, verdict.values, c.geometry)[0] <= 1e-6
+            else:
+                assert not strict.solve(s, seed=3).feasible, s.describe()
+    assert used, "no slice was started from a convergence point"
