@@ -48,6 +48,9 @@ STAGED_FRACTION = 0.5
 # a one-start verdict (the plan's graph, a level warm-starting it) is polished after its start
 # only when it ends closer to feasible than this; farther points are polished by `confirm`
 LOCAL_POLISH_BELOW = 1e-2
+# a subgraph starts from an earlier convergence point only when that violates it by less than
+# this (and less than the earlier solutions do): see `_Checker.solve`
+CLOSE_START = 1e-3
 Progress = Callable[[str], None]
 
 
@@ -355,9 +358,13 @@ class _Checker:
         trajs = [v for v in g.variables if is_trajectory(v)]
         warm = {v: self.values[v] for v in g.variables if v in self.values}
         if self.closest_point is not None and not trajs:
-            # an earlier convergence point that violates g less than the earlier solutions
-            # (with the initial guess) do is the better start: typically x* of the graph g is
-            # a slice of, which the elastic solve left violated only at the contradiction
+            # an earlier convergence point that nearly satisfies g (CLOSE_START), and better
+            # than the earlier solutions (with the initial guess) do, is the better start:
+            # typically x* of a graph g is a slice of, whose solve stopped with small residuals
+            # on g's factors while the contradiction lies elsewhere. Not a point that violates
+            # g more: that is the local minimum g's solve should get a second chance to avoid
+            # (Lab 1: the keyframes stalled at 2e-2 on a grasp; started there, their time slice
+            # failed again, a false conflict)
             warm.update(self.closest_point)
         if trajs and any(v not in self.values for v in trajs):
             modes = g.apply_relaxation({TRAJ}, "modes")
@@ -710,7 +717,7 @@ class _Checker:
             self.run.stats.reused_solutions += 1
             per = {r: 0.0 for r in g.factor_refs}
             return FeasibilityResult(True, values, per, worst, 0.0, 0.0, 0, why, 0)
-        if best[0] < own:
+        if best[0] < min(own, CLOSE_START):
             self.closest_point = best[1]
         return None
 

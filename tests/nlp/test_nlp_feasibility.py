@@ -78,6 +78,31 @@ def test_warm_start_and_initial_guess():
     assert r.feasible and r.values[vs[5]][1] == pytest.approx(0.0, abs=1e-6)
 
 
+def test_restarts_alternate_the_initial_guess_and_random_points():
+    """Restart 1 starts from the graph's initial guess moved by `restart_noise`, not from the
+    warm start (whose local minimum the first run may have found); restart 2 from a random
+    point; quaternions stay unit. Checked on the starts handed to ipopt."""
+    vs, fs = chain(4, conflict_at=None)
+    P = VarInstance("pose", ("o",), 0, "SE3", 7)
+    fz = factor("t.up", [P], [Constraint(Index(Slot(0), Num(2)), ">=", Num(0.0))], 0)
+    g = GraphNLP([*fs, fz])
+    guess = {v: np.array([5.0, 1.0, 0.0]) for v in vs}
+    guess[P] = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
+    g.initial_guess = guess
+    warm = {v: np.array([-7.0, -2.0, 0.5]) for v in vs}
+    s = FeasibilitySolver(options=SolverOptions(restart_noise=0.3))
+    a = s.assemble(g)
+    starts = [s._start(a, g, warm, None, seed=4, attempt=k) for k in range(3)]
+    for v, off in zip(a.variables, a.offsets):
+        x0, x1, x2 = (st[off:off + v.dim] for st in starts)
+        if v in warm:
+            assert np.allclose(x0, warm[v])
+        assert np.abs(x1 - guess[v]).max() < 5 * 0.3 and not np.allclose(x1, guess[v])
+        assert np.abs(x2 - guess[v]).max() > 0 and not np.allclose(x2, x1)
+        if v is P:
+            assert np.linalg.norm(x1[3:]) == pytest.approx(1.0)
+
+
 def test_se3_unit_quaternion_and_joint_bounds():
     P = VarInstance("pose", ("o",), 0, "SE3", 7)
     J = VarInstance("q", ("r",), 0, "joints", 2, lower=(-0.5, 0.2), upper=(0.5, 0.4))
