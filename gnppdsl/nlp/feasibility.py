@@ -51,7 +51,7 @@ class SolverOptions:
     restarts: int = 2              # extra random restarts after an infeasible verdict: a false
                                    # "infeasible" would prune feasible plans (Theorem 7.1)
     noise: float = 0.1             # std of the default start perturbation (x10 on restarts)
-    restart_noise: float = 0.3     # std of the perturbation of the warm start on odd restarts
+    restart_noise: float = 0.3     # std of the perturbation of the initial guess on odd restarts
     ipopt: dict = field(default_factory=dict)   # extra nlpsol options ("ipopt.xyz": value)
     plugin: str = "ipopt"          # casadi nlpsol plugin: "ipopt" or "sqpmethod" (qrqp)
     time_limit: float | None = None   # wall-clock seconds per ipopt run

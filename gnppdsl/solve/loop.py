@@ -697,19 +697,22 @@ class _Checker:
         NLPs, p5: 9 -> 6)."""
         from gnppdsl.nlp.feasibility import FeasibilityResult
 
-        sources = [(self.values, "earlier solutions satisfy it"),
-                   *((p, "an earlier convergence point satisfies it") for p in self.points),
-                   (self.start_point(g), "its start (earlier solutions and the initial guess) satisfies it")]
+        # (values, why they would do, whether they are a convergence point rather than the
+        # start the NLP would be given)
+        sources = [(self.values, "earlier solutions satisfy it", False),
+                   *((p, "an earlier convergence point satisfies it", True) for p in self.points),
+                   (self.start_point(g), "its start (earlier solutions and the initial guess) satisfies it",
+                    False)]
         self.closest_point = None
         own = np.inf                      # violation at the start the NLP would be given
         best = (np.inf, None)             # the convergence point closest to satisfying g
-        for point, why in sources:
+        for point, why, converged in sources:
             if not point or any(v not in point for v in g.variables):
                 continue
             values = {v: point[v] for v in g.variables}
             worst = self.run.violation(g.factor_instances, values, g.variables)
             if not worst <= self.run.options.tolerance:
-                if point is self.values or why.startswith("its start"):
+                if not converged:
                     own = min(own, worst)
                 elif worst < best[0]:
                     best = (worst, values)
