@@ -363,8 +363,9 @@ class _Checker:
             # typically x* of a graph g is a slice of, whose solve stopped with small residuals
             # on g's factors while the contradiction lies elsewhere. Not a point that violates
             # g more: that is the local minimum g's solve should get a second chance to avoid
-            # (Lab 1: the keyframes stalled at 2e-2 on a grasp; started there, their time slice
-            # failed again, a false conflict)
+            # (Lab 1: the keyframes stalled at 2e-2 on a grasp, and their time slice started
+            # there failed again; it failed from the warm start too, and only the restart from
+            # the initial guess, `FeasibilitySolver._perturbed`, avoided the false conflict)
             warm.update(self.closest_point)
         if trajs and any(v not in self.values for v in trajs):
             modes = g.apply_relaxation({TRAJ}, "modes")
