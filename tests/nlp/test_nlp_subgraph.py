@@ -40,26 +40,6 @@ def test_chain_conflict_is_exactly_steps_3_4_with_log_solves(n):
     assert confirm_infeasible(res.subgraph)
 
 
-def test_binary_search_counts_checks_with_an_oracle():
-    """With an exact oracle (infeasible iff the slice holds both conflict factors) the search
-    finds (f, l) with O(log n) checks and never needs the solver."""
-    for n, at in [(64, 3), (64, 60), (33, 0), (100, 50)]:
-        vs, fs = chain(n, conflict_at=at)
-        g = GraphNLP(fs)
-        calls = []
-
-        def oracle(sub):
-            calls.append(sub)
-            names = {sub.factor(r).template for r in sub.factor_refs}
-            return not {"toy.left", "toy.right"} <= names or \
-                not any(sub.factor(r).template == "toy.move" and sub.factor(r).step == at
-                        for r in sub.factor_refs)
-
-        feasible, rng = binary_search_time(g, oracle)
-        assert not feasible and rng == (at, at + 1)
-        assert len(calls) <= 1 + 2 * math.ceil(math.log2(n + 1))
-
-
 def _conflict_oracle(at, calls):
     def oracle(sub):
         calls.append(sub.steps)
@@ -68,6 +48,18 @@ def _conflict_oracle(at, calls):
             not any(sub.factor(r).template == "toy.move" and sub.factor(r).step == at
                     for r in sub.factor_refs)
     return oracle
+
+
+def test_binary_search_counts_checks_with_an_oracle():
+    """With an exact oracle (infeasible iff the slice holds both conflict factors) the search
+    finds (f, l) with O(log n) checks and never needs the solver."""
+    for n, at in [(64, 3), (64, 60), (33, 0), (100, 50)]:
+        vs, fs = chain(n, conflict_at=at)
+        g = GraphNLP(fs)
+        calls = []
+        feasible, rng = binary_search_time(g, _conflict_oracle(at, calls))
+        assert not feasible and rng == (at, at + 1)
+        assert len(calls) <= 1 + 2 * math.ceil(math.log2(n + 1))
 
 
 @pytest.mark.parametrize("n,at", [(64, 3), (64, 60), (33, 0), (100, 50), (10, 1), (10, 8)])
