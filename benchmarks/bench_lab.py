@@ -17,6 +17,8 @@ from pathlib import Path
 
 import yaml
 
+from gnppdsl.cli.solver_args import add_curvature_argument   # light imports
+
 ROOT = Path(__file__).resolve().parents[1]
 LAB = ROOT / "examples" / "lab"
 
@@ -50,6 +52,7 @@ def main(argv=None) -> int:
                          "disk (the first run on a machine compiles them: its CPU time includes the C "
                          "compiler's; with a warm cache nothing is compiled); default off, so that no "
                          "run's time depends on what background compilers have finished")
+    add_curvature_argument(ap)
     ap.add_argument("--fresh-templates", action="store_true",
                     help="compile the factor templates again for every seed (default: compiled by "
                          "the first seed, reused by the later ones, as in one process solving a "
@@ -74,7 +77,8 @@ def main(argv=None) -> int:
         for seed in range(args.seeds):
             opts = SolveOptions.from_settings(comp.problem.settings, seed=seed, time_limit=args.time_limit,
                                               order=args.order,
-                                              jit=args.jit if args.jit is not None else False)
+                                              jit=args.jit if args.jit is not None else False,
+                                              distance_curvature=args.distance_curvature)
             if args.lazy_search:
                 opts = replace(opts, lazy_search=True)
             if args.fresh_templates:
@@ -98,9 +102,11 @@ def main(argv=None) -> int:
         rows.append((name, spec, runs))
 
     base = SolveOptions.from_settings(comp.problem.settings, order=args.order,
-                                      jit=args.jit if args.jit is not None else False)
+                                      jit=args.jit if args.jit is not None else False,
+                                      distance_curvature=args.distance_curvature)
     print(f"Lab benchmark: {args.seeds} seeds, time limit {args.time_limit:g} s, order {base.order}, "
-          f"jit {jit.mode(base.jit)}, distance queries {native.describe()}, solutions verified with pinocchio + coal (CPU s of "
+          f"jit {jit.mode(base.jit)}, distance curvature {'on' if base.distance_curvature else 'off'}, "
+          f"distance queries {native.describe()}, solutions verified with pinocchio + coal (CPU s of "
           f"this process and its C compiler runs; paper: single core); templates "
           + ("compiled for every seed" if args.fresh_templates else
              "compiled by the first seed and reused ('first': its CPU s)")

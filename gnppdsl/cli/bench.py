@@ -15,7 +15,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from gnppdsl.cli.solver_args import add_jit_argument, add_order_argument   # light imports
+from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
 from gnppdsl.solve.result import algorithm_title   # light as well
 
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
@@ -36,6 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_order_argument(parser)
     add_jit_argument(parser, default="off (no run's time depends on what background compilers have "
                                      "finished; --jit counts each compile in the run that needs it)")
+    add_curvature_argument(parser)
     parser.add_argument("--csv", default=None, metavar="FILE", help="write one row per run")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -175,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
                     compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
                     time_limit=args.time_limit, seed=seed, max_horizon=args.max_horizon,
                     order=args.order, jit=args.jit if args.jit is not None else False,
+                    distance_curvature=args.distance_curvature,
                 )
                 # every run compiles its own templates: runs share nothing, so no algorithm
                 # or seed is timed with the templates an earlier one compiled (and jit is off

@@ -22,3 +22,11 @@ def add_jit_argument(parser: argparse.ArgumentParser, default: str = SOLVE_JIT_D
     parser.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
                         help="--jit: compile the large derivative kernels to C during the solve "
                              f"(cached on disk); --no-jit: never. Default: {default}")
+
+
+def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--distance-curvature", action=argparse.BooleanOptionalAction, default=None,
+                        help="ipopt's Hessian includes the second derivatives of signed-distance rows "
+                             "(--no-distance-curvature: they enter linearised, cheaper iterations on "
+                             "robot domains). Default: the problem's solver setting "
+                             "`distance_curvature`, else on")

@@ -434,6 +434,10 @@ class SolverSettings:
                 ("full_first", "relaxed_first", "staged"; None: the solver's default)
     jit         large derivative kernels as compiled C (cached on disk; `gnppdsl.nlp.jit`): true =
                 compile during the solve, false = never, None = in the background for later solves
+    distance_curvature
+                ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
+                query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
+                in SQP trajectory optimisers (see `gnppdsl.nlp.feasibility.SolverOptions`)
     """
 
     algorithm: str = "gnpp"
@@ -448,6 +452,7 @@ class SolverSettings:
     database: str | None = None
     order: str | None = None
     jit: bool | None = None
+    distance_curvature: bool = True
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -457,7 +462,7 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool,
+    "order": str, "jit": bool, "distance_curvature": bool,
 }
 
 

@@ -39,7 +39,7 @@ import numpy as np
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.errors import UserError
 from gnppdsl.nlp.casadi_expr import BodyCompiler, CompiledBody, scatter_sum
-from gnppdsl.nlp.geometry_protocol import Geometry
+from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 
 
@@ -62,6 +62,9 @@ class SolverOptions:
     hessian: str = "exact"         # ipopt: "exact" or "limited-memory" (L-BFGS: no Hessian
                                    # construction; on the lab1 full graph with trajectories
                                    # 3.5 s + 30 s (240 it) vs exact 16-26 s + 26-31 s (90 it))
+    distance_curvature: bool = True   # ipopt's exact Hessian includes the second derivatives
+                                   # of rows querying signed distances; False: they enter the
+                                   # Hessian linearised (`_hessian_function` says why)
     assembly: str = "auto"         # "SX" | "MX" | "auto" (MX when geometry primitives appear)
     cache_size: int = 512          # assembled NLPs kept (LRU) per FeasibilitySolver
     polish: bool = True            # re-solve an infeasible verdict with rho * 1e-4 from x*
@@ -499,7 +502,16 @@ class FeasibilitySolver:
         assembled from the per-template SX Hessians (`BodyCompiler.hessian`), one mapped call
         per template, scattered into place by one sparse matrix product. `h_rows[i]` is the
         elastic row of g holding real row i; `quat_idx` the x indices of quaternion entries,
-        in the order of the unit-norm rows that follow the elastic rows."""
+        in the order of the unit-norm rows that follow the elastic rows.
+
+        With `distance_curvature` off, templates that query signed distances (`sdist`,
+        `sdist2`) are left out: their rows enter ipopt's model linearised, as collision
+        constraints do in SQP trajectory optimisers (TrajOpt). Why: on robot domains those
+        Hessians are a large part of an iteration's cost (Lab 5 mode-switch graph, 2554 rows:
+        26 of 64 ms per iteration) and the least informative part of the model, the second
+        derivative of a piecewise-smooth distance through a local contact model. The verdict
+        is untouched: only ipopt's steps change, feasibility is decided on the real rows.
+        Measured with `benchmarks/bench_lab.py` (examples/README.md)."""
         z = ca.MX.sym("x", n_z)
         pp = ca.MX.sym("p", n + n_par + 1)
         lam_f = ca.MX.sym("lam_f")
@@ -508,6 +520,8 @@ class FeasibilitySolver:
         lam_h = lam_g[h_rows.tolist()] if h_rows.size else ca.MX(0, 1)
         parts, entries, base = [], [], 0       # entries: (row a, col b, index into parts)
         for cb, k, stacked, p0, r0 in layout:
+            if not self.options.distance_curvature and DISTANCE_PRIMITIVES & cb.primitives:
+                continue
             hf = self.compiler.hessian(cb)
             sp = hf.sparsity_out(0)
             if sp.nnz() == 0:

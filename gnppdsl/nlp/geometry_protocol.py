@@ -99,3 +99,6 @@ class Geometry(Protocol):
 
 GEOMETRY_PRIMITIVES = ("fk", "sdist", "sdist2")
 """Builtins delegated to the injected `Geometry` (plus `link`, which only names a body)."""
+
+DISTANCE_PRIMITIVES = frozenset({"sdist", "sdist2"})
+"""The signed-distance queries among them (`SolverOptions.distance_curvature`)."""
