@@ -88,6 +88,8 @@ class SolveOptions:
     jit: bool | None = None          # large derivative kernels as compiled C (gnppdsl.nlp.jit):
                                      # None: compiled in the background for later solves, True:
                                      # compiled now, False: never (`jit.mode`)
+    distance_curvature: bool = True  # ipopt's Hessian includes the curvature of signed-distance rows
+                                     # (`SolverOptions.distance_curvature`)
     lazy_search: bool = False        # gnpp: Alg. 1's search solves each small subgraph from one
                                      # start, only the conflict gets the restarts (`_Checker.confirm`);
                                      # off by default: lab3 -15 % CPU, but lab5 seed 0 took 4x (a
@@ -99,7 +101,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp", "order", "jit"):
+                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -904,7 +906,8 @@ class _Run:
 
         kw = {} if self.options.restarts is None else {"restarts": self.options.restarts}
         opts = SolverOptions(tolerance=self.options.tolerance, max_iter=self.options.max_iter,
-                             plugin=self.options.nlp, time_limit=max(0.05, self.remaining()), **kw)
+                             plugin=self.options.nlp, time_limit=max(0.05, self.remaining()),
+                             distance_curvature=self.options.distance_curvature, **kw)
         solver = deadline_solver(FeasibilitySolver)(self.compiled.geometry, opts, compiler=self.compiler)
         solver.deadline = self.deadline
         self.solvers.append(solver)
