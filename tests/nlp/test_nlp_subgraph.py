@@ -305,6 +305,45 @@ def test_recheck_keeps_a_real_whole_range_conflict():
     assert confirm_infeasible(res.subgraph)
 
 
+def test_recheck_of_an_inner_range_lets_the_search_go_on_past_a_false_verdict():
+    """A solver that fails the whole graph and the slice G[0..4] of a feasible 8-step chain on
+    their first solves (local minima): the time search ends at (0, 4) with G[0..3] and
+    G[1..4] feasible, the second opinion solves G[0..4], the search resumes from its memo and
+    ends at the whole range, whose second opinion solves it. Without `recheck`, G[0..4] is
+    returned: a false conflict."""
+    vs, fs = chain(8, conflict_at=None)             # feasible
+    g = GraphNLP(fs)
+    s = FeasibilitySolver()
+    flaky = {g.signature(), g.time_slice(0, 4).signature()}
+
+    def make_check():
+        failed: set = set()
+
+        def check(sub):
+            r = s.solve(sub)
+            key = sub.signature()
+            if key in flaky and key not in failed:
+                failed.add(key)
+                return type(r)(False, r.values, {ref: 1.0 for ref in sub.factor_refs}, 1.0, 1.0,
+                               0.0, 0, "forced failure", 1)
+            return r
+        return check
+
+    seen = []
+
+    def recheck(sub):
+        seen.append(sub.steps)
+        return s.solve(sub)
+
+    res = find_infeasible_subgraph(g, [], "t", check=make_check(), solver=s, recheck=recheck)
+    assert seen == [(0, 4), g.steps]
+    assert res.feasible and res.stats.rechecks_feasible == 2
+    assert max_violation(fs, res.values)[0] <= TOL
+    plain = find_infeasible_subgraph(g, [], "t", check=make_check(), solver=s)
+    assert not plain.feasible and plain.time_range == (0, 4)
+    assert not confirm_infeasible(plain.subgraph)          # what the second opinion prevents
+
+
 def test_the_heuristic_shrinks_a_long_component_before_the_time_search():
     """`shrink_before_time_search`: on a 40-step chain whose contradiction sits at steps
     30-31, the factors violated at the whole graph's convergence point induce a small
