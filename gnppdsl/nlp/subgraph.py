@@ -286,7 +286,8 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
                              switches: str = "trn", check: Check | None = None,
                              solver: FeasibilitySolver | None = None,
                              tolerance: float | None = None,
-                             recheck: Check | None = None) -> SearchResult:
+                             recheck: Check | None = None,
+                             recheck_above: int = 0) -> SearchResult:
     """Algorithm 1. `relaxations` are tried loose to tight, the full graph last (added if
     missing). `check` defaults to `solver.solve` with warm starts from earlier feasible
     solutions; `solver` also provides convergence points when `check` returns bools.
@@ -302,6 +303,9 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
     false conflicts were 5-8-step slices (G[0..4] of a 10-step plan, infeasible from three
     starts after 482 iterations, 11 s, while G[0..3] and G[1..4] solved at once and another
     seed solved the whole plan), each one learnt as a conflict that cut off feasible plans.
+    A range short of the whole component gets it only when it has more than `recheck_above`
+    factors: a small NLP's verdict from several starts is reliable, and there the second
+    opinion is one more NLP before the same conflict (planar p5: 6 -> 7 NLPs).
     Without `recheck` the range is returned as infeasible, as Alg. 1 has it."""
     unknown = set(switches) - set("trng")
     if unknown:
@@ -332,6 +336,8 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
                 and _strict_slices_feasible(g, rng, checker):
             rechecked.add(rng)
             kept = g if rng == g.steps else g.time_slice(*rng)
+            if kept is not g and kept.n_factors <= recheck_above:
+                break
             second = recheck(kept)
             if not _ok(second):
                 break

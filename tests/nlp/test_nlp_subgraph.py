@@ -342,6 +342,16 @@ def test_recheck_of_an_inner_range_lets_the_search_go_on_past_a_false_verdict():
     plain = find_infeasible_subgraph(g, [], "t", check=make_check(), solver=s)
     assert not plain.feasible and plain.time_range == (0, 4)
     assert not confirm_infeasible(plain.subgraph)          # what the second opinion prevents
+    # a range of at most `recheck_above` factors keeps its verdict without a second opinion
+    seen.clear()
+    n = g.time_slice(0, 4).n_factors
+    small = find_infeasible_subgraph(g, [], "t", check=make_check(), solver=s, recheck=recheck,
+                                     recheck_above=n)
+    assert seen == [] and small.time_range == (0, 4)
+    seen.clear()
+    large = find_infeasible_subgraph(g, [], "t", check=make_check(), solver=s, recheck=recheck,
+                                     recheck_above=n - 1)
+    assert seen == [(0, 4), g.steps] and large.feasible
 
 
 def test_the_heuristic_shrinks_a_long_component_before_the_time_search():
