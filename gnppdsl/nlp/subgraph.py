@@ -272,14 +272,19 @@ def shrink_before_time_search(comp: GraphNLP, check: "_Checker", tolerance: floa
 
 
 def _strict_slices_feasible(g: GraphNLP, rng: tuple[int, int] | None, checker: "_Checker") -> bool:
-    """The time search kept the multi-step range `rng` of g: its strict slices G[f..l-1] and
-    G[f+1..l] were checked (memo) and are feasible."""
+    """The time search kept the multi-step range `rng` = (f, l) of g, and its strict slices
+    G[f..l-1] and G[f+1..l] are known feasible: checked (memo), or inside a slice checked
+    feasible (Property 4.4). The search itself provides both: G[f..l-1] lies in G[lo..l-1],
+    the feasible slice that fixed l, and G[f+1..l] is the feasible slice that fixed f."""
     if rng is None or g.steps is None or rng[1] <= rng[0]:
         return False
-    lo, hi = rng
-    # _ok(None) is False: a slice the search never checked does not count as feasible
-    return all(_ok(checker.memo.get(g.time_slice(a, b).signature()))
-               for a, b in ((lo, hi - 1), (lo + 1, hi)))
+    lo, (f, l) = g.steps[0], rng
+
+    def known(*ranges: tuple[int, int]) -> bool:
+        # _ok(None) is False: a slice never checked does not count as feasible
+        return any(_ok(checker.memo.get(g.time_slice(a, b).signature())) for a, b in dict.fromkeys(ranges))
+
+    return known((f, l - 1), (lo, l - 1)) and known((f + 1, l))
 
 
 def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] = (),

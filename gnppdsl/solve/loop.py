@@ -94,6 +94,10 @@ class SolveOptions:
                                      # start, only the conflict gets the restarts (`_Checker.confirm`);
                                      # off by default: lab3 -15 % CPU, but lab5 seed 0 took 4x (a
                                      # different conflict, then a wrong one-start verdict to undo)
+    lazy_large: bool = True          # gnpp: ... and each subgraph above LAZY_MAX_FACTORS factors: its
+                                     # verdict gets the second opinion of `recheck` when it ends the
+                                     # time search, the restarts when it is the conflict (see
+                                     # LAZY_MAX_FACTORS for why)
 
     @staticmethod
     def from_settings(settings: Any = None, **overrides: Any) -> "SolveOptions":
@@ -342,7 +346,8 @@ class _Checker:
         self.values: dict[VarInstance, np.ndarray] = {}
         self.results: dict[frozenset, Any] = {}
         self.points: list[dict] = []      # convergence points of infeasible solves, newest first
-        self.lazy = False                 # Alg. 1's search: one start per NLP (see `confirm`)
+        self.lazy = False                 # Alg. 1's search: one start per small NLP (see `confirm`)
+        self.lazy_large = False           # ... and per NLP above LAZY_MAX_FACTORS factors
         self.unconfirmed: set = set()     # signatures of infeasible verdicts from one start
 
     def solve(self, g: Any) -> Any:
@@ -386,12 +391,12 @@ class _Checker:
                     opts.restarts, opts.final_polish_below = 0, LOCAL_POLISH_BELOW
                 # never lazy: g takes this verdict as its own, and g's key is not marked
                 # unconfirmed (`confirm` would pass a one-start verdict on)
-                lazy, self.lazy = self.lazy, False
+                lazy, self.lazy, self.lazy_large = (self.lazy, self.lazy_large), False, False
                 try:
                     r0 = self.solve(modes)
                 finally:
                     opts.restarts, opts.final_polish_below = saved
-                    self.lazy = lazy
+                    self.lazy, self.lazy_large = lazy
                 if not r0.feasible:
                     self.results[key] = r0
                     if modes.signature() in self.unconfirmed:
@@ -428,7 +433,7 @@ class _Checker:
             opts = self.solver.options
             opts.time_limit = max(0.05, run.remaining())
             saved = opts.restarts
-            lazy = self.lazy and g.n_factors <= LAZY_MAX_FACTORS
+            lazy = self.lazy if g.n_factors <= LAZY_MAX_FACTORS else self.lazy_large
             if lazy:
                 opts.restarts = 0
             try:
@@ -1149,8 +1154,8 @@ class _Run:
                            key=lambda c: (not any(ref in violated for ref in c.factor_refs),
                                           c.steps or (0, 0), min(c.factor_refs)))
 
-            def search_components(lazy: bool) -> Any:
-                checker.lazy = lazy
+            def search_components(lazy: bool, lazy_large: bool) -> Any:
+                checker.lazy, checker.lazy_large = lazy, lazy_large
                 try:
                     for comp in comps:
                         search = find_infeasible_subgraph(comp, (), sw.replace("r", "").replace("g", ""),
@@ -1164,16 +1169,16 @@ class _Run:
                             return search.subgraph
                     return None
                 finally:
-                    checker.lazy = False
+                    checker.lazy = checker.lazy_large = False
 
-            found = search_components(self.options.lazy_search)
+            found = search_components(self.options.lazy_search, self.options.lazy_large)
             if found is not None and not checker.confirm(found):
                 # a one-start verdict led the search to a feasible subgraph: search again with
                 # every verdict from all its starts (the behaviour without lazy_search)
                 self.say(f"  {found.name}: feasible from a restart; searching {g_r.name} again with restarts")
                 self.stats.lazy_retries += 1
                 checker.forget_unconfirmed()
-                found = search_components(False)
+                found = search_components(False, False)
             if found is None:
                 # Every component is feasible, so G_r is (Property 4.5): the solver missed the
                 # joint solution. The union of the components' solutions is one; never turn a
@@ -1312,12 +1317,14 @@ class _Run:
 
 
 LAZY_MAX_FACTORS = 40
-"""Largest subgraph (factors) that Alg. 1's lazy search solves from one start. Measured: on
-Lab 3 (subgraphs of at most 26 factors) no one-start verdict was ever overturned by the
-restarts, while on Lab 5 a 123-factor time slice failed from its warm start and was solved by
-a restart; trusting that one start sent the search to another conflict (seed 0: 28 NLPs and
-157 s instead of 24 NLPs and 37 s). Also the size above which a time range that is not a
-whole component gets the second opinion of `recheck` (`find_infeasible_subgraph`)."""
+"""Small and large subgraphs of Alg. 1's search (factors). Small ones are solved from one start
+only with `lazy_search`: on Lab 3 (subgraphs of at most 26 factors) no one-start verdict was
+ever overturned by the restarts. Large ones are solved from one start with `lazy_large`
+(default): their restarts (random points, the initial guess) cost 10-20 s each on Lab 5 and
+seldom succeed where the warm start failed, and the range the time search ends with gets a
+second opinion from its sub-slices' solutions instead (`recheck`, given to ranges above this
+size; session 7 without that second opinion: trusting one start on a 123-factor slice sent
+the search to another conflict, seed 0: 28 NLPs and 157 s instead of 24 NLPs and 37 s)."""
 
 IDLE_MOTION = 1e-3
 """Largest keyframe change (per coordinate) of a trajectory that `motions_between_keyframes`

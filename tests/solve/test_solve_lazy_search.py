@@ -62,3 +62,64 @@ def test_a_wrong_one_start_verdict_is_caught_by_the_restarts_and_the_search_is_r
     for c in res.conflicts:
         if c.source == "nlp":
             check_conflict_infeasible(compiled, c)
+
+
+@pytest.mark.parametrize("name,n", [("p4_pair", 6), ("p6_clutter", 4)])
+def test_large_subgraphs_from_one_start_give_real_conflicts_and_the_same_length(monkeypatch, name, n):
+    """`SolveOptions.lazy_large` (default): subgraphs above LAZY_MAX_FACTORS get one start in
+    the search. With the threshold lowered so that the planar subgraphs count as large, the
+    search does solve them from one start, and the answer and its conflicts are as real as
+    with every start."""
+    monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
+    compiled = load_and_compile(str(PLANAR / f"{name}.pntc"))
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+
+    starts = []
+    real = FeasibilitySolver.solve
+
+    def counting(self, g, *a, **k):
+        if "#" in g.name:                          # a component or slice: Alg. 1's search
+            starts.append((g.n_factors, self.options.restarts))
+        return real(self, g, *a, **k)
+
+    monkeypatch.setattr(FeasibilitySolver, "solve", counting)
+    for large in (True, False):
+        starts.clear()
+        res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, lazy_large=large))
+        assert res.solved and res.stats.N == n, res.message
+        check_solution(compiled, res)
+        for c in res.conflicts:
+            if c.source == "nlp":
+                check_conflict_infeasible(compiled, c)
+        one_start = [k for k, restarts in starts if k > 2 and restarts == 0]
+        assert bool(one_start) == large
+
+
+def test_a_wrong_one_start_verdict_on_a_large_subgraph_is_not_learnt(monkeypatch):
+    """Every feasible verdict on a large subgraph in the search is turned into a false
+    'infeasible' (a stuck first start): the second opinion of `recheck` or the restarts of
+    `confirm` catch it; the answer is the same and every conflict is real."""
+    monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
+    real = loop._Checker.solve
+    lies = []
+
+    def lying(self, g):
+        r = real(self, g)
+        if self.lazy_large and g.n_factors > 2 and r.feasible and g.signature() not in lies:
+            lies.append(g.signature())
+            fake = replace(r, feasible=False, max_violation=1.0,
+                           violations={ref: 1.0 for ref in g.factor_refs})
+            self.results[g.signature()] = fake
+            self.unconfirmed.add(g.signature())
+            return fake
+        return r
+
+    monkeypatch.setattr(loop._Checker, "solve", lying)
+    compiled = load_and_compile(str(PLANAR / "p5_handover.pntc"))
+    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60))
+    assert lies
+    assert res.solved and res.stats.N == 3, res.message
+    check_solution(compiled, res)
+    for c in res.conflicts:
+        if c.source == "nlp":
+            check_conflict_infeasible(compiled, c)
