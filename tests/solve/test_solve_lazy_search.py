@@ -22,12 +22,7 @@ def test_lazy_and_strict_search_both_give_real_conflicts_and_the_same_length(nam
     compiled = load_and_compile(str(PLANAR / f"{name}.pntc"))
     runs = {}
     for lazy in (True, False):
-        res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, lazy_search=lazy))
-        assert res.solved and res.stats.N == n, res.message
-        check_solution(compiled, res)
-        for c in res.conflicts:
-            if c.source == "nlp":
-                check_conflict_infeasible(compiled, c)
+        res = _solve_checked(compiled, SolveOptions(switches="trn", time_limit=60, lazy_search=lazy), n)
         runs[lazy] = res.stats
     # the same NLPs are solved (a lazy verdict is the first start of the same solve)...
     assert runs[True].nlp_solves == runs[False].nlp_solves
@@ -39,13 +34,23 @@ def test_a_wrong_one_start_verdict_is_caught_by_the_restarts_and_the_search_is_r
     """Every feasible verdict of the lazy search is turned into a false 'infeasible' (as a
     stuck first start would give): the subgraph the search ends on is then feasible, its
     restarts say so, and the strict search finds the real conflict; the answer is the same."""
+    lies = _lie_when(monkeypatch, lambda checker, g: checker.lazy)
+    res = _solve_checked(load_and_compile(str(PLANAR / "p5_handover.pntc")),
+                         SolveOptions(switches="trn", time_limit=60, lazy_search=True), 3)
+    assert lies and res.stats.lazy_retries >= 1
+
+
+def _lie_when(monkeypatch, condition) -> list:
+    """`_Checker.solve` turns each feasible verdict for which `condition(checker, g)` holds into
+    a false one-start 'infeasible' (what a stuck first start gives), once per subgraph; the
+    returned list names them."""
     real = loop._Checker.solve
-    lies = []
+    lies: list = []
 
     def lying(self, g):
         r = real(self, g)
-        if self.lazy and r.feasible:
-            lies.append(g.name)
+        if r.feasible and condition(self, g) and g.signature() not in lies:
+            lies.append(g.signature())
             fake = replace(r, feasible=False, max_violation=1.0,
                            violations={ref: 1.0 for ref in g.factor_refs})
             self.results[g.signature()] = fake
@@ -54,14 +59,18 @@ def test_a_wrong_one_start_verdict_is_caught_by_the_restarts_and_the_search_is_r
         return r
 
     monkeypatch.setattr(loop._Checker, "solve", lying)
-    compiled = load_and_compile(str(PLANAR / "p5_handover.pntc"))
-    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, lazy_search=True))
-    assert lies and res.stats.lazy_retries >= 1
-    assert res.solved and res.stats.N == 3, res.message
+    return lies
+
+
+def _solve_checked(compiled, options: SolveOptions, n: int):
+    """Solved with N = n actions, its plan, values and conflicts checked independently."""
+    res = solve_compiled(compiled, options)
+    assert res.solved and res.stats.N == n, res.message
     check_solution(compiled, res)
     for c in res.conflicts:
         if c.source == "nlp":
             check_conflict_infeasible(compiled, c)
+    return res
 
 
 @pytest.mark.parametrize("name,n", [("p4_pair", 6), ("p6_clutter", 4)])
@@ -85,12 +94,7 @@ def test_large_subgraphs_from_one_start_give_real_conflicts_and_the_same_length(
     monkeypatch.setattr(FeasibilitySolver, "solve", counting)
     for large in (True, False):
         starts.clear()
-        res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, lazy_large=large))
-        assert res.solved and res.stats.N == n, res.message
-        check_solution(compiled, res)
-        for c in res.conflicts:
-            if c.source == "nlp":
-                check_conflict_infeasible(compiled, c)
+        _solve_checked(compiled, SolveOptions(switches="trn", time_limit=60, lazy_large=large), n)
         one_start = [k for k, restarts in starts if k > 2 and restarts == 0]
         assert bool(one_start) == large
 
@@ -100,26 +104,6 @@ def test_a_wrong_one_start_verdict_on_a_large_subgraph_is_not_learnt(monkeypatch
     'infeasible' (a stuck first start): the second opinion of `recheck` or the restarts of
     `confirm` catch it; the answer is the same and every conflict is real."""
     monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
-    real = loop._Checker.solve
-    lies = []
-
-    def lying(self, g):
-        r = real(self, g)
-        if self.lazy_large and g.n_factors > 2 and r.feasible and g.signature() not in lies:
-            lies.append(g.signature())
-            fake = replace(r, feasible=False, max_violation=1.0,
-                           violations={ref: 1.0 for ref in g.factor_refs})
-            self.results[g.signature()] = fake
-            self.unconfirmed.add(g.signature())
-            return fake
-        return r
-
-    monkeypatch.setattr(loop._Checker, "solve", lying)
-    compiled = load_and_compile(str(PLANAR / "p5_handover.pntc"))
-    res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60))
+    lies = _lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2)
+    _solve_checked(load_and_compile(str(PLANAR / "p5_handover.pntc")), SolveOptions(switches="trn", time_limit=60), 3)
     assert lies
-    assert res.solved and res.stats.N == 3, res.message
-    check_solution(compiled, res)
-    for c in res.conflicts:
-        if c.source == "nlp":
-            check_conflict_infeasible(compiled, c)
