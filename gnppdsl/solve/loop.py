@@ -645,9 +645,10 @@ class _Checker:
         """Second opinion on an infeasible g whose large strict time slices are feasible (see
         `find_infeasible_subgraph`): forget its verdict and solve it again, now warm-started
         from every value known in this plan (the slices' solutions among them), from that one
-        start (g's verdict already had its restarts; a failed second opinion of a 5-step Lab
-        slice costs 2-5 s this way, 10-40 s with restarts). A feasible answer is a real
-        solution (re-evaluated by the solver's verdict); an infeasible one stands as before."""
+        start: g's verdict had its restarts, or gets them from `confirm` if it becomes the
+        conflict (`lazy_large`), and a failed second opinion of a 5-step Lab slice costs 2-5 s
+        this way, 10-40 s with restarts. A feasible answer is a real solution (re-evaluated by
+        the solver's verdict); an infeasible one stands as before."""
         key = g.signature()
         old = self.results.pop(key, None)
         self.run.say(f"  {g.name}: infeasible, but its slices without the first or the last step are "
