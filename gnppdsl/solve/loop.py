@@ -26,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import re
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -327,6 +328,21 @@ def straight_line(xa: np.ndarray, xb: np.ndarray, waypoints: int, space: str) ->
 # ---------------------------------------------------------------------------------------------
 # one solve
 # ---------------------------------------------------------------------------------------------
+@contextmanager
+def overridden(obj: Any, **attrs: Any):
+    """`obj`'s attributes set to `attrs` for the duration of the block, restored afterwards
+    (also on an exception, e.g. the time limit): the checker switches its solver's restarts
+    and polish, and its own one-start modes, per solve."""
+    saved = {name: getattr(obj, name) for name in attrs}
+    for name, value in attrs.items():
+        setattr(obj, name, value)
+    try:
+        yield obj
+    finally:
+        for name, value in saved.items():
+            setattr(obj, name, value)
+
+
 class _Checker:
     """The feasibility check handed to Algorithm 1 for one plan's graph-NLP.
 
@@ -385,18 +401,12 @@ class _Checker:
                 # whole multi-step component gets a second opinion), so it never becomes a
                 # conflict by itself; random restarts of a 10-step Lab graph cost 100+ s.
                 # The final polish of a point far from feasible is skipped there too (`local_solve`).
-                opts = self.solver.options
-                saved = opts.restarts, opts.final_polish_below
-                if key == self.graph.signature():
-                    opts.restarts, opts.final_polish_below = 0, LOCAL_POLISH_BELOW
+                local = {"restarts": 0, "final_polish_below": LOCAL_POLISH_BELOW} \
+                    if key == self.graph.signature() else {}
                 # never lazy: g takes this verdict as its own, and g's key is not marked
                 # unconfirmed (`confirm` would pass a one-start verdict on)
-                lazy, self.lazy, self.lazy_large = (self.lazy, self.lazy_large), False, False
-                try:
+                with overridden(self.solver.options, **local), overridden(self, lazy=False, lazy_large=False):
                     r0 = self.solve(modes)
-                finally:
-                    opts.restarts, opts.final_polish_below = saved
-                    self.lazy, self.lazy_large = lazy
                 if not r0.feasible:
                     self.results[key] = r0
                     if modes.signature() in self.unconfirmed:
@@ -432,16 +442,11 @@ class _Checker:
             # ipopt's wall-time limit is fixed when a graph's NLP is assembled: give it what is left
             opts = self.solver.options
             opts.time_limit = max(0.05, run.remaining())
-            saved = opts.restarts
             lazy = self.lazy if g.n_factors <= LAZY_MAX_FACTORS else self.lazy_large
-            if lazy:
-                opts.restarts = 0
-            try:
+            with overridden(opts, **({"restarts": 0} if lazy else {})):
                 r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
-            finally:
-                opts.restarts = saved
             run.nlp_calls += 1
-            if lazy and not r.feasible and saved > 0:
+            if lazy and not r.feasible and opts.restarts > 0:
                 self.unconfirmed.add(key)
         if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
             # cut short by the time limit: not a verdict (never a conflict, never stored)
@@ -467,7 +472,6 @@ class _Checker:
         of the full graph did not converge; the polish alone solves it near the start."""
         run = self.run
         opts = self.solver.options
-        saved = opts.restarts, opts.final_polish_below
         # On the plan's graph the final polish of a point far from feasible is left to
         # `confirm` too: it is a second run of the largest NLP of the plan (Lab 5: 77
         # iterations, 5 s on a 10-step mode-switch graph ending at 2.6e-2) that does not turn
@@ -475,14 +479,10 @@ class _Checker:
         # keyframes stall at 1.6e-3 and the polish solves them). The small levels solved
         # before it keep their polish: it is cheap, and their convergence point shapes the
         # conflict search (Lab 4: two more NLPs without it).
-        opts.restarts = 0
-        if g.signature() == self.graph.signature():
-            opts.final_polish_below = LOCAL_POLISH_BELOW
+        polish = {"final_polish_below": LOCAL_POLISH_BELOW} if g.signature() == self.graph.signature() else {}
         opts.time_limit = max(0.05, run.remaining())
-        try:
+        with overridden(opts, restarts=0, **polish):
             r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
-        finally:
-            opts.restarts, opts.final_polish_below = saved
         run.nlp_calls += 1
         return r
 
@@ -653,12 +653,8 @@ class _Checker:
         old = self.results.pop(key, None)
         self.run.say(f"  {g.name}: infeasible, but its slices without the first or the last step are "
                      f"feasible; solving it again from their solutions")
-        opts = self.solver.options
-        saved, opts.restarts = opts.restarts, 0
-        try:
+        with overridden(self.solver.options, restarts=0):
             r = self.solve(g)
-        finally:
-            opts.restarts = saved
         if not r.feasible and old is not None:
             self.results[key] = old
             return old
@@ -1127,11 +1123,8 @@ class _Run:
             # restarts) and gets the restarts only if the search returns a subgraph carrying it
             # (`confirm`); a feasible graph the one start missed has feasible components, which
             # the search then joins (planar p7: 102 -> 88 ipopt runs, p5: 18 -> 14)
-            checker.local_first = not full_seen
-            try:
+            with overridden(checker, local_first=not full_seen):
                 verdict = checker(g_r)
-            finally:
-                checker.local_first = False
             full_seen = full_seen or rule is None
             feasible = verdict.feasible if hasattr(verdict, "feasible") else bool(verdict)
             if feasible:
@@ -1156,8 +1149,7 @@ class _Run:
                                           c.steps or (0, 0), min(c.factor_refs)))
 
             def search_components(lazy: bool, lazy_large: bool) -> Any:
-                checker.lazy, checker.lazy_large = lazy, lazy_large
-                try:
+                with overridden(checker, lazy=lazy, lazy_large=lazy_large):
                     for comp in comps:
                         search = find_infeasible_subgraph(comp, (), sw.replace("r", "").replace("g", ""),
                                                           check=checker, solver=solver,
@@ -1169,8 +1161,6 @@ class _Run:
                         if search.subgraph is not None:
                             return search.subgraph
                     return None
-                finally:
-                    checker.lazy = checker.lazy_large = False
 
             found = search_components(self.options.lazy_search, self.options.lazy_large)
             if found is not None and not checker.confirm(found):
