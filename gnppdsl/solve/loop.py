@@ -365,13 +365,15 @@ class _Checker:
         self.lazy = False                 # Alg. 1's search: one start per small NLP (see `confirm`)
         self.lazy_large = False           # ... and per NLP above LAZY_MAX_FACTORS factors
         self.unconfirmed: set = set()     # signatures of infeasible verdicts from one start
+        self.derived: dict = {}           # graph -> its mode-switch graph, whose infeasible
+                                          # verdict it took as its own (see `overturned`)
 
     def solve(self, g: Any) -> Any:
         run = self.run
         if time.perf_counter() >= run.deadline:
             raise _TimeUp()
         key = g.signature()
-        if key in self.results:
+        if key in self.results and not self.overturned(key):
             return self.results[key]
         known = self.known_solution(g)
         if known is not None:
@@ -409,9 +411,11 @@ class _Checker:
                     r0 = self.solve(modes)
                 if not r0.feasible:
                     self.results[key] = r0
+                    self.derived[key] = modes.signature()
                     if modes.signature() in self.unconfirmed:
                         self.unconfirmed.add(key)      # as final as the relaxation's verdict
                     return r0          # a relaxation is infeasible, so g is (Property 4.4)
+                self.consistent_keyframes(modes, r0)
             warm.update({v: self.values[v] for v in g.variables if v in self.values})
             todo = [v for v in trajs if v not in self.values]
             if run.reach:
@@ -461,6 +465,48 @@ class _Checker:
             self.infer_components(g, r)
         return r
 
+    def overturned(self, key: frozenset) -> bool:
+        """Was the cached verdict of this graph its mode-switch graph's infeasible one, which a
+        later solve has turned to feasible (the search's second opinion, a restart of
+        `confirm`, the union of its components)? Then the verdict is dropped and the graph is
+        solved again. Why: Lab 5 seed 3, the plan's keyframes failed one start, Alg. 1 found
+        the mode-switch level feasible, and the full graph, still holding the keyframes'
+        verdict, was searched slice by slice with its motions (590-factor joint solves of
+        40-80 s each, time-out), where the keyframes now known needed only its motions."""
+        modes = self.derived.get(key)
+        if modes is None or not getattr(self.results.get(modes), "feasible", False):
+            return False
+        del self.derived[key]
+        self.results.pop(key, None)
+        self.unconfirmed.discard(key)
+        return True
+
+    def consistent_keyframes(self, modes: Any, r0: Any) -> None:
+        """Make the keyframes in `self.values` a solution of `modes` (the mode switches of a
+        graph about to get its motions) before the motions are fixed between them.
+
+        `self.values` collects the latest solution of every variable, so the keyframes of a
+        slice may come from different solves (Lab 5 seed 3: steps 0-6 from a joint solve of
+        G[0..6] with its motions, steps 7-8 from the mode-switch graph's solve), which need not
+        agree at the seam (0.17 on a `same` row there), and every motion across it then fails
+        with its keyframes fixed. When they do not satisfy `modes`, its NLP is solved once from
+        them (one start: it stays near the keyframes whose motions were found) and, if that
+        fails, `r0`'s solution of `modes` is taken."""
+        run = self.run
+        point = {v: self.values[v] for v in modes.variables if v in self.values}
+        if len(point) == len(modes.variables) and \
+                run.violation(modes.factor_instances, point, modes.variables) <= run.options.tolerance:
+            return
+        opts = self.solver.options
+        opts.time_limit = max(0.05, run.remaining())
+        with overridden(opts, restarts=0):
+            r = self.solver.solve(modes, warm_start=point, seed=run.options.seed)
+        run.nlp_calls += 1
+        if not r.feasible and time.perf_counter() >= run.deadline:
+            raise _TimeUp()
+        self.values.update(r.values if r.feasible else
+                           {v: x for v, x in r0.values.items() if v in modes.variables})
+
     def local_solve(self, g: Any, warm: dict) -> Any:
         """The warm start and the polish, without random restarts: a feasible result, or an
         infeasible verdict from one start (the caller marks it unconfirmed, see `confirm`).
@@ -497,34 +543,35 @@ class _Checker:
         iteration of the joint graph costs the sum of its phases, ~0.7 s with 6 phases and
         ~2.9 s with 10, and the joint solve iterates until the hardest motion converges (Lab 5:
         97 iterations, 281 s, not converged); with fixed keyframes the phases are independent
-        and each takes only its own iterations. Never a verdict: a phase that fails with its
-        keyframes fixed says nothing about g (the keyframes may have to move), so nothing here
-        is stored as a result or becomes a conflict."""
-        run = self.run
+        and each takes only its own iterations.
+
+        A phase that fails with its keyframes fixed joins the keyframes (`keyframes_with_motions`:
+        the mode switches and that motion in one NLP, the keyframes free), and the other phases
+        are solved again between the keyframes that NLP returns; up to MAX_JOINED_MOTIONS
+        phases, then the joint solve of g. Never a verdict: a phase that fails here says
+        nothing about g (the keyframes may have to move differently), so nothing here is
+        stored as a result or becomes a conflict."""
+        if any(v not in self.values for v in g.variables if not v.waypoints):
+            return None
         fixed_values: dict = {}
-        for i in sorted({v.step for v in trajs}):
-            s = g.time_slice(i, i + 1)
-            s = s.subgraph(variables=[v for v in s.variables if not (v.waypoints and v.step != i)],
-                           suffix=f"{{motion {i}}}")
-            frozen = {}
-            for v in s.variables:
-                if v.waypoints:
-                    continue
-                if v not in self.values:
-                    return None
-                frozen[v] = _fixed(v, self.values[v])
-            if not frozen or not any(v.waypoints for v in s.variables):
-                continue
-            r = None
-            idle = self.idle_motions(s, i)
-            if idle:
-                r = self.solve_motion(s, frozen, idle, warm, fixed_values)
-            if r is None or not r.feasible:
-                r = self.solve_motion(s, frozen, {}, warm, fixed_values)
-            if not r.feasible:
-                run.say(f"  {g.name}: motion {i} not found with fixed keyframes "
-                        f"(violation {r.max_violation:.2g}); solving all motions jointly")
+        joined: list[int] = []
+        while True:
+            failed = self.phases_between_keyframes(g, trajs, warm, fixed_values, joined)
+            if failed is None:
                 break
+            if len(joined) >= MAX_JOINED_MOTIONS:
+                self.run.say(f"  {g.name}: motion {failed} not found with fixed keyframes; "
+                             "solving all motions jointly")
+                warm.update(fixed_values)
+                return None
+            joined.append(failed)
+            r = self.keyframes_with_motions(g, joined, {**warm, **fixed_values})
+            if not r.feasible:
+                self.run.say(f"  {g.name}: keyframes with motions {joined} failed "
+                             f"(violation {r.max_violation:.2g}); solving all motions jointly")
+                warm.update(fixed_values)
+                return None
+            self.values.update({v: x for v, x in r.values.items() if not v.waypoints})
             fixed_values.update({v: x for v, x in r.values.items() if v.waypoints})
         warm.update(fixed_values)
         if not fixed_values:
@@ -535,6 +582,56 @@ class _Checker:
         if known is not None:
             self.values.update(known.values)
         return known
+
+    def phases_between_keyframes(self, g: Any, trajs: Sequence[VarInstance], warm: dict,
+                                 fixed_values: dict, joined: Sequence[int]) -> int | None:
+        """Solve each phase of g not in `joined` between its fixed keyframes (`self.values`),
+        adding the motions to `fixed_values`; the first phase that fails, or None."""
+        for i in sorted({v.step for v in trajs}):
+            if i in joined:
+                continue
+            s = g.time_slice(i, i + 1)
+            s = s.subgraph(variables=[v for v in s.variables if not (v.waypoints and v.step != i)],
+                           suffix=f"{{motion {i}}}")
+            frozen = {v: _fixed(v, self.values[v]) for v in s.variables if not v.waypoints}
+            if not frozen or not any(v.waypoints for v in s.variables):
+                continue
+            r = None
+            idle = self.idle_motions(s, i)
+            if idle:
+                r = self.solve_motion(s, frozen, idle, warm, fixed_values)
+            if r is None or not r.feasible:
+                r = self.solve_motion(s, frozen, {}, warm, fixed_values)
+            if not r.feasible:
+                self.run.say(f"  {g.name}: motion {i} not found with fixed keyframes "
+                             f"(violation {r.max_violation:.2g})")
+                return i
+            fixed_values.update({v: x for v, x in r.values.items() if v.waypoints})
+        return None
+
+    def keyframes_with_motions(self, g: Any, phases: Sequence[int], warm: dict) -> Any:
+        """One NLP: g's mode switches with the motions of `phases`, every keyframe free (the
+        subgraph of g induced by its keyframes and those trajectories), from one start.
+
+        Why: a motion that fails between fixed keyframes usually needs its keyframes moved a
+        little (Lab 5 seed 3: a detour 1.3e-2 over the velocity budget), and moving them moves
+        the keyframes they are tied to (a held block's pose, the other arm's grasp) all along
+        the plan, so the keyframes are solved together with that motion only. Its iteration
+        costs the mode switches plus one motion, against every motion in the joint solve of
+        g (Lab 5: 40-80 s for 8-10 phases)."""
+        run = self.run
+        m = g.subgraph(variables=[v for v in g.variables if not v.waypoints or v.step in phases],
+                       suffix="{keyframes+motions " + ",".join(map(str, phases)) + "}")
+        start = {v: warm[v] for v in m.variables if v in warm}
+        start.update({v: self.values[v] for v in m.variables if v in self.values and not v.waypoints})
+        opts = self.solver.options
+        opts.time_limit = max(0.05, run.remaining())
+        with overridden(opts, restarts=0):
+            r = self.solver.solve(m, warm_start=start, seed=run.options.seed)
+        run.nlp_calls += 1
+        if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
+            raise _TimeUp()
+        return r
 
     def idle_motions(self, s: Any, i: int) -> dict:
         """The trajectories of phase i whose keyframes at i and i+1 are equal up to IDLE_MOTION
@@ -574,7 +671,7 @@ class _Checker:
 
         run = self.run
         fixed = {**frozen, **{v: _fixed(v, x) for v, x in idle.items()}}
-        start = {**{v: self.values[v] for v in frozen}, **warm, **fixed_values, **idle}
+        start = {**warm, **fixed_values, **idle, **{v: self.values[v] for v in frozen}}
         m = s
         if idle:
             const = [ref for ref in s.factor_refs if all(u in fixed for u in s.graph.neighbors(ref))]
@@ -1088,6 +1185,7 @@ class _Run:
         (`find_infeasible_subgraph`). Same verdicts as Alg. 1.
         Returns ("solution", values) | ("conflict", factors, relaxation) | ("inconsistent", why).
         """
+        from gnppdsl.nlp.feasibility import FeasibilityResult
         from gnppdsl.nlp.subgraph import find_infeasible_subgraph
 
         sw = self.options.switches
@@ -1123,7 +1221,9 @@ class _Run:
             # restarts) and gets the restarts only if the search returns a subgraph carrying it
             # (`confirm`); a feasible graph the one start missed has feasible components, which
             # the search then joins (planar p7: 102 -> 88 ipopt runs, p5: 18 -> 14)
-            with overridden(checker, local_first=not full_seen):
+            # (the full graph again at the end: its cached verdict, or, when that was its
+            # keyframes' and they proved feasible since (`overturned`), a new one-start solve)
+            with overridden(checker, local_first=not full_seen or rule is None):
                 verdict = checker(g_r)
             full_seen = full_seen or rule is None
             feasible = verdict.feasible if hasattr(verdict, "feasible") else bool(verdict)
@@ -1163,13 +1263,24 @@ class _Run:
                     return None
 
             found = search_components(self.options.lazy_search, self.options.lazy_large)
-            if found is not None and not checker.confirm(found):
-                # a one-start verdict led the search to a feasible subgraph: search again with
-                # every verdict from all its starts (the behaviour without lazy_search)
-                self.say(f"  {found.name}: feasible from a restart; searching {g_r.name} again with restarts")
+            retries = 0
+            while found is not None and not checker.confirm(found):
+                # a one-start verdict led the search to a feasible subgraph (now in the memo
+                # with its solution): search again without the one-start verdicts. The first
+                # LAZY_RETRIES repeats keep one start for large subgraphs, the last one gives
+                # every subgraph all its starts (the behaviour without lazy_search/lazy_large),
+                # whose verdicts need no confirmation, so the loop ends. Why not all starts at
+                # once: Lab 5 seed 6, a 76-factor slice failed one start and was solved by a
+                # restart of `confirm`; the repeated search with restarts then spent 50 s on
+                # each 360-factor slice and timed out.
+                retries += 1
+                strict = retries > LAZY_RETRIES
+                self.say(f"  {found.name}: feasible from a restart; searching {g_r.name} again"
+                         + (" with restarts" if strict else ""))
                 self.stats.lazy_retries += 1
                 checker.forget_unconfirmed()
-                found = search_components(False, False)
+                found = search_components(self.options.lazy_search and not strict,
+                                          self.options.lazy_large and not strict)
             if found is None:
                 # Every component is feasible, so G_r is (Property 4.5): the solver missed the
                 # joint solution. The union of the components' solutions is one; never turn a
@@ -1184,6 +1295,9 @@ class _Run:
                 if rule is None:
                     return ("solution", values)
                 checker.values.update(values)
+                checker.results[g_r.signature()] = FeasibilityResult(
+                    True, values, {ref: 0.0 for ref in g_r.factor_refs}, 0.0, 0.0, 0.0, 0,
+                    "its components are feasible", 0)
                 continue
             return ("conflict", tuple(found.factor_instances), rule.name if rule is not None else "")
         return ("solution", {})
@@ -1316,6 +1430,15 @@ seldom succeed where the warm start failed, and the range the time search ends w
 second opinion from its sub-slices' solutions instead (`recheck`, given to ranges above this
 size; session 7 without that second opinion: trusting one start on a 123-factor slice sent
 the search to another conflict, seed 0: 28 NLPs and 157 s instead of 24 NLPs and 37 s)."""
+
+LAZY_RETRIES = 1
+"""Repeats of Alg. 1's search that keep one-start verdicts after `confirm` overturned one (the
+overturned subgraph's solution is then in the memo); the next repeat gives every subgraph all
+its starts."""
+
+MAX_JOINED_MOTIONS = 3
+"""Motions solved together with the keyframes (`_Checker.motions_between_keyframes`) before the
+joint solve of every motion is tried instead."""
 
 IDLE_MOTION = 1e-3
 """Largest keyframe change (per coordinate) of a trajectory that `motions_between_keyframes`
