@@ -40,16 +40,16 @@ def test_a_wrong_one_start_verdict_is_caught_by_the_restarts_and_the_search_is_r
     assert lies and res.stats.lazy_retries >= 1
 
 
-def _lie_when(monkeypatch, condition) -> list:
+def _lie_when(monkeypatch, condition, once: bool = True) -> list:
     """`_Checker.solve` turns each feasible verdict for which `condition(checker, g)` holds into
-    a false one-start 'infeasible' (what a stuck first start gives), once per subgraph; the
-    returned list names them."""
+    a false one-start 'infeasible' (what a stuck first start gives), once per subgraph (or every
+    time: `once=False`); the returned list names them."""
     real = loop._Checker.solve
     lies: list = []
 
     def lying(self, g):
         r = real(self, g)
-        if r.feasible and condition(self, g) and g.signature() not in lies:
+        if r.feasible and condition(self, g) and not (once and g.signature() in lies):
             lies.append(g.signature())
             fake = replace(r, feasible=False, max_violation=1.0,
                            violations={ref: 1.0 for ref in g.factor_refs})
@@ -107,3 +107,34 @@ def test_a_wrong_one_start_verdict_on_a_large_subgraph_is_not_learnt(monkeypatch
     lies = _lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2)
     _solve_checked(load_and_compile(str(PLANAR / "p5_handover.pntc")), SolveOptions(switches="trn", time_limit=60), 3)
     assert lies
+
+
+def test_a_repeated_search_keeps_one_start_for_large_subgraphs_once_then_gives_all(monkeypatch):
+    """After `confirm` overturns the conflict of a search, the first repeat (LAZY_RETRIES = 1)
+    still solves large subgraphs from one start (the overturned one now in the memo with its
+    solution); a repeat after that gives every subgraph all its starts. Lies on every large
+    one-start feasible verdict (the second opinions of `recheck` too, not the restarts of
+    `confirm`) force the repeats; the answer and its conflicts are checked as above."""
+    import gnppdsl.nlp.subgraph as subgraph
+
+    monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
+    _lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2, once=False)
+    forgets: dict = {}
+    searches: list = []
+    real_forget, real_search = loop._Checker.forget_unconfirmed, subgraph.find_infeasible_subgraph
+
+    def forget(self):
+        forgets[id(self)] = forgets.get(id(self), 0) + 1
+        return real_forget(self)
+
+    def search(graph, *a, check=None, **k):
+        searches.append((forgets.get(id(check), 0), check.lazy_large))
+        return real_search(graph, *a, check=check, **k)
+
+    monkeypatch.setattr(loop._Checker, "forget_unconfirmed", forget)
+    monkeypatch.setattr(subgraph, "find_infeasible_subgraph", search)
+    res = _solve_checked(load_and_compile(str(PLANAR / "p5_handover.pntc")),
+                         SolveOptions(switches="trn", time_limit=60), 3)
+    assert res.stats.lazy_retries >= 2
+    assert {large for n, large in searches if n <= loop.LAZY_RETRIES} == {True}
+    assert {large for n, large in searches if n > loop.LAZY_RETRIES} == {False}
