@@ -447,7 +447,10 @@ class _Checker:
             opts = self.solver.options
             opts.time_limit = max(0.05, run.remaining())
             lazy = self.lazy if g.n_factors <= LAZY_MAX_FACTORS else self.lazy_large
-            with overridden(opts, **({"restarts": 0} if lazy else {})):
+            # a one-start verdict: no restarts, and the polish of a point far from feasible
+            # left to `confirm` too (as for the plan's own graph, `local_solve`)
+            one_start = {"restarts": 0, "final_polish_below": LOCAL_POLISH_BELOW}
+            with overridden(opts, **(one_start if lazy else {})):
                 r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
             run.nlp_calls += 1
             if lazy and not r.feasible and opts.restarts > 0:
