@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+import networkx as nx
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
@@ -359,7 +360,7 @@ class _Checker:
 
     def __init__(self, run: "_Run", solver: Any, graph: Any, use_db: bool):
         self.run, self.solver, self.graph, self.use_db = run, solver, graph, use_db
-        self.values: dict[VarInstance, np.ndarray] = {}
+        self.values: StampedValues = StampedValues()
         self.results: dict[frozenset, Any] = {}
         self.points: list[dict] = []      # convergence points of infeasible solves, newest first
         self.lazy = False                 # Alg. 1's search: one start per small NLP (see `confirm`)
@@ -381,7 +382,7 @@ class _Checker:
             self.values.update(known.values)      # a solution like any other: warm starts
             return known
         trajs = [v for v in g.variables if is_trajectory(v)]
-        warm = {v: self.values[v] for v in g.variables if v in self.values}
+        warm = self.warm_start(g)
         if self.closest_point is not None and not trajs:
             # an earlier convergence point that nearly satisfies g (CLOSE_START), and better
             # than the earlier solutions (with the initial guess) do, is the better start:
@@ -416,7 +417,7 @@ class _Checker:
                         self.unconfirmed.add(key)      # as final as the relaxation's verdict
                     return r0          # a relaxation is infeasible, so g is (Property 4.4)
                 self.consistent_keyframes(modes, r0)
-            warm.update({v: self.values[v] for v in g.variables if v in self.values})
+            warm.update(self.warm_start(g))
             todo = [v for v in trajs if v not in self.values]
             if run.reach:
                 for v in list(todo):
@@ -467,6 +468,32 @@ class _Checker:
             self.points = [r.values, *self.points][:self.max_points]
             self.infer_components(g, r)
         return r
+
+    def warm_start(self, g: Any) -> dict:
+        """The start of g's NLP from this plan's earlier solutions (`self.values`), made
+        consistent along g's equality factors (`a == b` between two variables, e.g. an object's
+        pose while its parent stays): each chain of them takes the value set last among its
+        variables.
+
+        Why: `self.values` holds the latest solution of every variable, so consecutive steps
+        can come from different solves, and where an equality crosses that seam the two values
+        may be far apart. Lab 5 seed 2: a held block's relative pose at step 2 came from a
+        subgraph's solution, at step 3 from a relaxation's, 180 degrees apart about its
+        symmetry axis (both grasps valid); every slice across the seam then stopped at that
+        local minimum (1.4 on the `same` row) until a random restart, 6 NLPs and 13 s. The
+        chain takes the newest value: it comes from the graph solved last, which carried the
+        most of the plan's factors that matter now."""
+        warm = {v: self.values[v] for v in g.variables if v in self.values}
+        chains = nx.Graph()
+        for ref in g.factor_refs:
+            pair = equality_pair(g.factor(ref))
+            if pair is not None and all(v in warm for v in pair):
+                chains.add_edge(*pair)
+        for chain in nx.connected_components(chains):
+            newest = max(chain, key=lambda v: (self.values.stamp[v], -v.step))
+            for v in chain:
+                warm[v] = self.values[newest]
+        return warm
 
     def overturned(self, key: frozenset) -> bool:
         """Was the cached verdict of this graph its mode-switch graph's infeasible one, which a
@@ -1447,6 +1474,41 @@ IDLE_MOTION = 1e-3
 """Largest keyframe change (per coordinate) of a trajectory that `motions_between_keyframes`
 first tries with the straight line fixed (a waiting arm); if that phase fails it is solved
 again with the trajectory free, so this is a speed setting, never a restriction."""
+
+
+class StampedValues(dict):
+    """`_Checker.values`: the latest value of each variable, and when it was set (`stamp`, one
+    tick per `update`: the values of one solve share it), for `_Checker.warm_start`."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__()
+        self.stamp: dict = {}
+        self.clock = 0
+        self.update(*args, **kw)
+
+    def __setitem__(self, key: Any, value: Any) -> None:
+        self.clock += 1
+        super().__setitem__(key, value)
+        self.stamp[key] = self.clock
+
+    def update(self, *args: Any, **kw: Any) -> None:       # type: ignore[override]
+        self.clock += 1
+        for key, value in dict(*args, **kw).items():
+            super().__setitem__(key, value)
+            self.stamp[key] = self.clock
+
+
+def equality_pair(f: FactorInstance) -> tuple[VarInstance, VarInstance] | None:
+    """The two variables of a factor whose only constraint is `x0 == x1` between its two
+    variables of the same kind of space (e.g. `same(pose(o), pose(o)')`), else None."""
+    from gnppdsl.ir.expr import Slot
+
+    if len(f.variables) != 2 or len(f.body) != 1:
+        return None
+    c, (a, b) = f.body[0], f.variables
+    if c.op != "==" or {c.lhs, c.rhs} != {Slot(0), Slot(1)} or (a.space, a.dim) != (b.space, b.dim):
+        return None
+    return a, b
 
 
 def _children_cpu() -> float:

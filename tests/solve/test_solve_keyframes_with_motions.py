@@ -140,7 +140,7 @@ def test_keyframes_from_two_solves_are_made_consistent_near_them():
     b2 = {v.step: v for v in modes.variables if v.args == ("b2",)}
     for i in (3, 4):
         mixed[b2[i]] = np.asarray(mixed[b2[i]]) + 0.2
-    checker.values = dict(mixed)
+    checker.values = loop.StampedValues(mixed)
     assert _violation(run, modes, checker.values) > 0.1         # a `stay` row broken at the seam
     calls = run.nlp_calls
     checker.consistent_keyframes(modes, r0)
@@ -165,10 +165,31 @@ def test_keyframes_from_two_solves_are_made_consistent_near_them():
 def test_a_failed_repair_takes_the_keyframes_solution(monkeypatch):
     run, checker, modes = _checker_on_the_toy_plan()
     r0 = checker.solve(modes)
-    checker.values = {v: np.asarray(x) + 0.3 for v, x in checker.values.items()}
+    checker.values = loop.StampedValues({v: np.asarray(x) + 0.3 for v, x in checker.values.items()})
     real = FeasibilitySolver.solve
     monkeypatch.setattr(FeasibilitySolver, "solve",
                         lambda self, g, *a, **k: replace(real(self, g, *a, **k), feasible=False))
     checker.consistent_keyframes(modes, r0)
     assert all(np.array_equal(checker.values[v], r0.values[v]) for v in modes.variables)
     assert _violation(run, modes, checker.values) <= 1e-6
+
+
+def test_warm_starts_follow_the_newest_value_along_equality_chains():
+    """`_Checker.warm_start`: where `self.values` mixes two solves across an equality factor
+    (`toy.same`: b2 stays in `side` from step 2 to 4), the whole chain starts from the value
+    set last; variables on no chain keep their own values."""
+    run, checker, modes = _checker_on_the_toy_plan()
+    b = {(v.args[0], v.step): v for v in modes.variables}
+    pairs = [loop.equality_pair(modes.factor(ref)) for ref in modes.factor_refs]
+    chain = {frozenset(p) for p in pairs if p is not None and p[0].args == ("b2",)}
+    assert chain == {frozenset({b["b2", 2], b["b2", 3]}), frozenset({b["b2", 3], b["b2", 4]})}
+    # an inequality factor is no equality pair
+    assert all(loop.equality_pair(modes.factor(ref)) is None for ref in modes.factor_refs
+               if modes.factor(ref).template in ("toy.inside", "toy.apart"))
+    checker.values = loop.StampedValues({v: np.array([0.5 + 0.01 * v.step]) for v in modes.variables})
+    checker.values.update({b["b2", 3]: np.array([2.1])})            # a later solve of step 3 alone
+    warm = checker.warm_start(modes)
+    assert all(float(warm[b["b2", i]][0]) == 2.1 for i in (2, 3, 4))
+    assert float(warm[b["b1", 3]][0]) == 0.53 and float(warm[b["b2", 1]][0]) == 0.51
+    # values themselves are not changed, only the start
+    assert float(checker.values[b["b2", 2]][0]) == 0.52
