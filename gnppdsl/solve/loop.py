@@ -472,8 +472,10 @@ class _Checker:
     def warm_start(self, g: Any) -> dict:
         """The start of g's NLP from this plan's earlier solutions (`self.values`), made
         consistent along g's equality factors (`a == b` between two variables, e.g. an object's
-        pose while its parent stays): each chain of them takes the value set last among its
-        variables.
+        pose while its parent stays): in each chain of them, the variables set by an earlier
+        solve than the newest one take its value. (Values of one solve are left as they are:
+        a relaxation without the equalities may hold different values along a chain, and its
+        own values are the better start there: Lab 4, 2.2 against 4.2 s for its keyframes.)
 
         Why: `self.values` holds the latest solution of every variable, so consecutive steps
         can come from different solves, and where an equality crosses that seam the two values
@@ -492,7 +494,8 @@ class _Checker:
         for chain in nx.connected_components(chains):
             newest = max(chain, key=lambda v: (self.values.stamp[v], -v.step))
             for v in chain:
-                warm[v] = self.values[newest]
+                if self.values.stamp[v] < self.values.stamp[newest]:
+                    warm[v] = self.values[newest]
         return warm
 
     def overturned(self, key: frozenset) -> bool:
