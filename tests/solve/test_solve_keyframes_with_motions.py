@@ -17,6 +17,7 @@ from gnppdsl.nlp.feasibility import FeasibilitySolver
 from gnppdsl.solve import loop
 from gnppdsl.solve.loop import SolveOptions, solve_compiled
 from solve_checks import check_solution
+from solve_lies import lie_when
 from solve_toy import occupied_problem
 
 OPTIONS = SolveOptions(switches="trn", time_limit=60, max_horizon=6, order="staged")
@@ -75,27 +76,6 @@ def test_without_keyframes_with_motions_the_plan_goes_to_the_joint_solve(monkeyp
     assert [s for s in seen if s[1] and len(s[2]) > 1]
 
 
-def _lie_on_the_first_keyframes(monkeypatch) -> list:
-    """The first feasible verdict on the mode switches of a 4-step plan is turned into a
-    one-start 'infeasible' with a convergence point away from the solution (a stuck start)."""
-    real = loop._Checker.solve
-    lies: list = []
-
-    def lying(self, g):
-        r = real(self, g)
-        if r.feasible and g.name == "G[modes]" and self.graph.steps == (0, 4) and not lies:
-            lies.append(g.signature())
-            fake = replace(r, feasible=False, max_violation=1.0, violations={ref: 1.0 for ref in g.factor_refs},
-                           values={v: np.asarray(x) + 0.37 for v, x in r.values.items()})
-            self.results[g.signature()] = fake
-            self.unconfirmed.add(g.signature())
-            return fake
-        return r
-
-    monkeypatch.setattr(loop._Checker, "solve", lying)
-    return lies
-
-
 @pytest.mark.parametrize("overturn", [True, False])
 def test_a_plan_whose_keyframes_prove_feasible_is_solved_again_not_searched(monkeypatch, overturn):
     """The plan's keyframes fail their first solve (a lie), Alg. 1 finds the mode-switch level
@@ -104,7 +84,10 @@ def test_a_plan_whose_keyframes_prove_feasible_is_solved_again_not_searched(monk
     `overturned` (the counterfactual) it is searched slice by slice."""
     if not overturn:
         monkeypatch.setattr(loop._Checker, "overturned", lambda self, key: False)
-    lies = _lie_on_the_first_keyframes(monkeypatch)
+    # the first feasible verdict on the 4-step plan's mode switches becomes a one-start
+    # 'infeasible' whose convergence point is away from the solution (a stuck start)
+    lies = lie_when(monkeypatch, lambda checker, g: g.name == "G[modes]" and checker.graph.steps == (0, 4),
+                    shift=0.37)
     seen = _spy_nlps(monkeypatch)
     _solved(occupied_problem(waypoints=4))
     assert lies

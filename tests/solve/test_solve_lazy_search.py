@@ -5,7 +5,6 @@ Checked on the planar examples against independent re-checks (plans, factors, co
 multi-start) and against the same solve without lazy search."""
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -13,6 +12,7 @@ import pytest
 from gnppdsl.solve import loop
 from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
 from solve_checks import check_conflict_infeasible, check_solution
+from solve_lies import lie_when
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 
@@ -34,32 +34,10 @@ def test_a_wrong_one_start_verdict_is_caught_by_the_restarts_and_the_search_is_r
     """Every feasible verdict of the lazy search is turned into a false 'infeasible' (as a
     stuck first start would give): the subgraph the search ends on is then feasible, its
     restarts say so, and the strict search finds the real conflict; the answer is the same."""
-    lies = _lie_when(monkeypatch, lambda checker, g: checker.lazy)
+    lies = lie_when(monkeypatch, lambda checker, g: checker.lazy)
     res = _solve_checked(load_and_compile(str(PLANAR / "p5_handover.pntc")),
                          SolveOptions(switches="trn", time_limit=60, lazy_search=True), 3)
     assert lies and res.stats.lazy_retries >= 1
-
-
-def _lie_when(monkeypatch, condition, once: bool = True) -> list:
-    """`_Checker.solve` turns each feasible verdict for which `condition(checker, g)` holds into
-    a false one-start 'infeasible' (what a stuck first start gives), once per subgraph (or every
-    time: `once=False`); the returned list names them."""
-    real = loop._Checker.solve
-    lies: list = []
-
-    def lying(self, g):
-        r = real(self, g)
-        if r.feasible and condition(self, g) and not (once and g.signature() in lies):
-            lies.append(g.signature())
-            fake = replace(r, feasible=False, max_violation=1.0,
-                           violations={ref: 1.0 for ref in g.factor_refs})
-            self.results[g.signature()] = fake
-            self.unconfirmed.add(g.signature())
-            return fake
-        return r
-
-    monkeypatch.setattr(loop._Checker, "solve", lying)
-    return lies
 
 
 def _solve_checked(compiled, options: SolveOptions, n: int):
@@ -104,7 +82,7 @@ def test_a_wrong_one_start_verdict_on_a_large_subgraph_is_not_learnt(monkeypatch
     'infeasible' (a stuck first start): the second opinion of `recheck` or the restarts of
     `confirm` catch it; the answer is the same and every conflict is real."""
     monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
-    lies = _lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2)
+    lies = lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2)
     _solve_checked(load_and_compile(str(PLANAR / "p5_handover.pntc")), SolveOptions(switches="trn", time_limit=60), 3)
     assert lies
 
@@ -118,7 +96,7 @@ def test_a_repeated_search_keeps_one_start_for_large_subgraphs_once_then_gives_a
     import gnppdsl.nlp.subgraph as subgraph
 
     monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
-    _lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2, once=False)
+    lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2, once=False)
     forgets: dict = {}
     searches: list = []
     real_forget, real_search = loop._Checker.forget_unconfirmed, subgraph.find_infeasible_subgraph
