@@ -18,7 +18,7 @@ from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 
 TOP_KEYS = ("name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
 ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "base_joint", "ee", "locked",
-              "home", "shape", "color")
+              "home", "held_pose", "shape", "color")
 BASE_JOINTS = ("fixed", "planar", "free")
 OBJECT_KEYS = ("shape", "size", "pose", "static", "color", "parent", "file", "scale")
 SHAPES = ("box", "cylinder", "sphere", "circle", "mesh")
@@ -322,9 +322,10 @@ class _Loader:
                 if k in m:
                     self.error(m[k][0], f"'{k}' does not apply to a planar robot", "scene")
             home = self.numbers(m["home"][1], "home [x, y, theta]", 3) if "home" in m else (0.0, 0.0, 0.0)
+            held = self.pose(m["held_pose"][1], 2) if "held_pose" in m else None
             shape = self.shape(m["shape"][1], m, 2) if "shape" in m else None
-            return SceneRobot(name, "planar", home=home, shape=shape, color=color, attributes=attrs,
-                              source=src)
+            return SceneRobot(name, "planar", home=home, held_pose=held, shape=shape, color=color,
+                              attributes=attrs, source=src)
         if ("model" in m) == ("urdf" in m):
             self.fail(knode, f"robot '{name}' needs exactly one of `model:` (example-robot-data name) "
                       "or `urdf:` (a file)")
@@ -346,10 +347,11 @@ class _Loader:
             for k, (kn, vn) in self.mapping(m["locked"][1], "locked").items():
                 locked[k] = self.number(vn, f"locked joint '{k}'")
         home = self.numbers(m["home"][1], "home") if "home" in m else ()
+        held = self.pose(m["held_pose"][1], 3) if "held_pose" in m else None
         shape = self.shape(m["shape"][1], m, 3) if "shape" in m else None
         return SceneRobot(name, "urdf", model=model, urdf=urdf, srdf=srdf, package_dirs=pdirs, base=base,
-                          ee=ee, locked=locked, home=home, shape=shape, color=color, attributes=attrs,
-                          source=src)
+                          ee=ee, locked=locked, home=home, held_pose=held, shape=shape, color=color,
+                          attributes=attrs, source=src)
 
     def obj(self, name: str, knode, node, dim: int) -> dict:
         m = self.mapping(node, f"object '{name}'")

@@ -47,6 +47,8 @@ class SceneRobot:
     ee: str | None = None                   # end-effector frame, e.g. "panda_hand_tcp"
     locked: dict[str, float] = field(default_factory=dict)        # joint name -> locked value
     home: tuple[float, ...] = ()            # home configuration (planar: SE2 pose)
+    held_pose: tuple[float, ...] | None = None   # initial guess of a held object's pose
+                                            # relative to the robot's gripper frame (SE3 / SE2)
     shape: SceneShape | None = None         # planar robots: their collision shape
     color: tuple[float, float, float, float] = (0.9, 0.9, 0.9, 1.0)
     attributes: dict[str, Any] = field(default_factory=dict)

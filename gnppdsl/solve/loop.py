@@ -1060,8 +1060,10 @@ class _Run:
         variables = factory.variables(states)
         guess = {}
         if hasattr(factory, "initial_guess"):
+            # the compiled factory reads the plan's states (a held object's pose); others may not
+            at = getattr(factory, "initial_guess_takes_states", False)
             for v in variables:
-                g = factory.initial_guess(v)
+                g = factory.initial_guess(v, states) if at else factory.initial_guess(v)
                 if g is not None:
                     guess[v] = np.asarray(g, float)
         graph = GraphNLP.from_factors(factors, variables, name="G", initial_guess=guess)
