@@ -188,3 +188,40 @@ def test_3d_scene_initial_configuration_satisfies_the_graph_of_s0(path):
             values[v] = np.asarray(guess)
     for f in factors:
         assert evaluate.factor_violation(f, values, geo) < 1e-9, f.label
+
+
+def test_a_held_block_starts_at_the_scenes_held_pose_and_holds_the_grasp_there():
+    """lab3 (`held_pose` in lab.yaml): along the plan pick(b5, right_arm) - handover - put, the
+    factory's initial guess of b5's pose is the held pose at the steps an arm holds it, and its
+    s_0 pose relative to the table otherwise; and at that start, the grasp rows of those steps
+    hold (evaluated by the independent numpy interpreter), which the table-relative start
+    violates by the block's distance from the tcp."""
+    evaluate = pytest.importorskip("gnppdsl.nlp.evaluate")
+    context = pytest.importorskip("gnppdsl.geometry.context")
+    import numpy as np
+
+    from gnppdsl.compile.factory import GraphNLPFactory
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+    from gnppdsl.compile.task import build_task
+
+    problem = _load(ROOT / "examples" / "lab" / "lab3.pntc")
+    task = build_task(problem)
+    geo = context.GeometryContext(problem.scene)
+    fac = GraphNLPFactory(problem, task, robot_dims=geo.robot_dims)
+    states = plan_states(task, parse_plan(task, "pick(b5, right_arm, table); "
+                                                "handover(b5, right_arm, left_arm); put(b5, left_arm, pad_l)"))
+    held = problem.scene.robots["left_arm"].held_pose
+    np.testing.assert_allclose(held, [0, 0, 0, 0, 0, np.sqrt(0.5), np.sqrt(0.5)], atol=1e-12)
+    poses = {v.step: v for v in fac.variables(states) if v.kind == "pose" and v.args == ("b5",)}
+    assert set(poses) == {0, 1, 2, 3}
+    for i in (1, 2):                                # held by right_arm, then by left_arm
+        assert fac.initial_guess(poses[i], states) == list(held)
+    for i in (0, 3):                                # on the table, on pad_l: as without states
+        assert fac.initial_guess(poses[i], states) == fac.initial_guess(poses[i])
+    grasps = [f for f in fac.factors(states) if f.rule == "held"]
+    assert {f.step for f in grasps} == {1, 2}
+    for with_states, bound in ((True, 1e-9), (False, None)):
+        values = {v: np.asarray(fac.initial_guess(v, states) if with_states else fac.initial_guess(v))
+                  for f in grasps for v in f.variables}
+        worst = max(evaluate.factor_violation(f, values, geo) for f in grasps)
+        assert worst < 1e-9 if with_states else worst > 0.1, worst

@@ -254,3 +254,31 @@ def test_missing_scene_file(tmp_path):
     r = Reporter()
     assert load_scene(tmp_path / "none.yaml", r) is None
     assert r.diagnostics[0].kind == "missing-file"
+
+
+def test_held_pose_of_a_robot(tmp_path):
+    """`held_pose`: a pose (3-D: {xyz, rpy | quat} or a list; planar: [x, y, theta]), absent ->
+    None; a malformed one is a located error at its value."""
+    s = load_scene_file(write(tmp_path, """\
+        robots:
+          a: {model: panda, held_pose: {xyz: [0, 0, 0.01], rpy: [0, 0, 1.0]}}
+          b: {model: panda}
+        objects: {}
+        """))
+    held = s.robots["a"].held_pose
+    np.testing.assert_allclose(held[:3], [0, 0, 0.01])
+    np.testing.assert_allclose(rot_quat(held[3:]), rot_rpy(0, 0, 1.0), atol=1e-12)
+    assert s.robots["b"].held_pose is None and "held_pose" not in s.robots["a"].attributes
+    p = load_scene_file(write(tmp_path, """\
+        dimension: 2
+        robots:
+          g: {kind: planar, held_pose: [0.01, 0, 0.5]}
+        objects: {}
+        """, "p.yaml"))
+    assert p.robots["g"].held_pose == (0.01, 0.0, 0.5)
+    d = errors(tmp_path, """\
+        robots:
+          a: {model: panda, held_pose: {xyz: [0, 0], rpy: [0, 0, 1]}}
+        objects: {}
+        """)
+    at(d, 2, 38, "scene")
