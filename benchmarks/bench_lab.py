@@ -57,9 +57,9 @@ def main(argv=None) -> int:
                     help="compile the factor templates again for every seed (default: compiled by "
                          "the first seed, reused by the later ones, as in one process solving a "
                          "problem several times; the 'first' column is the first seed's time)")
-    ap.add_argument("--lazy-search", action="store_true",
+    ap.add_argument("--lazy-search", action=argparse.BooleanOptionalAction, default=None,
                     help="Alg. 1 solves small subgraphs from one start and confirms only the "
-                         "conflict it returns (SolveOptions.lazy_search)")
+                         "conflict it returns (SolveOptions.lazy_search; default: on)")
     args = ap.parse_args(argv)
 
     from gnppdsl.geometry import native
@@ -79,8 +79,8 @@ def main(argv=None) -> int:
                                               order=args.order,
                                               jit=args.jit if args.jit is not None else False,
                                               distance_curvature=args.distance_curvature)
-            if args.lazy_search:
-                opts = replace(opts, lazy_search=True)
+            if args.lazy_search is not None:
+                opts = replace(opts, lazy_search=args.lazy_search)
             if args.fresh_templates:
                 comp.compilers.clear()
             w0 = time.perf_counter()
@@ -110,7 +110,8 @@ def main(argv=None) -> int:
           f"this process and its C compiler runs; paper: single core); templates "
           + ("compiled for every seed" if args.fresh_templates else
              "compiled by the first seed and reused ('first': its CPU s)")
-          + (", lazy search" if args.lazy_search else ""))
+          + ("" if args.lazy_search is None else
+             ", lazy search" if args.lazy_search else ", no lazy search"))
     hdr = (f"{'problem':8} {'ok':>6} {'N0':>3} {'N':>3} {'NLP':>11} {'CPU s':>12} {'first':>6} {'wall s':>7}"
            f" | {'paper':6} {'N0':>3} {'N':>3} {'NLP':>5} {'time s':>6}")
     print(hdr)

@@ -92,10 +92,12 @@ class SolveOptions:
                                      # compiled now, False: never (`jit.mode`)
     distance_curvature: bool = True  # ipopt's Hessian includes the curvature of signed-distance rows
                                      # (`SolverOptions.distance_curvature`)
-    lazy_search: bool = False        # gnpp: Alg. 1's search solves each small subgraph from one
+    lazy_search: bool = True         # gnpp: Alg. 1's search solves each small subgraph from one
                                      # start, only the conflict gets the restarts (`_Checker.confirm`);
-                                     # off by default: lab3 -15 % CPU, but lab5 seed 0 took 4x (a
-                                     # different conflict, then a wrong one-start verdict to undo)
+                                     # on since session 9 (with held objects' initial guesses): lab5
+                                     # 13.2 -> 4.5 s, lab3 4.9 -> 4.0 s, lab4 4.4 -> 5.0 s, planar
+                                     # NLPs the same but p7 (29.7 -> 32); before it, lab5 seed 0
+                                     # took 4x (a wrong one-start verdict to undo)
     lazy_large: bool = True          # gnpp: ... and each subgraph above LAZY_MAX_FACTORS factors: its
                                      # verdict gets the second opinion of `recheck` when it ends the
                                      # time search, the restarts when it is the conflict (see
