@@ -235,13 +235,16 @@ class GraphNLPFactory:
 
     def _held_guess(self, var: VarInstance, states: Sequence[Sequence[int]]) -> list[float] | None:
         """The scene's `held_pose` of the robot that is the parent of the object `var` belongs
-        to at var.step, when var is the object's pose relative to that parent; else None."""
+        to at var.step, when var is the object's pose relative to that parent and the parent is
+        not the one of s_0 (there the scene's own pose is the guess); else None."""
         parent_var = self._relative_to(var)
         if parent_var is None or not 0 <= var.step < len(states):
             return None
-        parent = self.task.variables[parent_var].values[states[var.step][parent_var]]
-        robot = self.scene.robots.get(parent) if self.scene is not None else None
-        if robot is None or robot.held_pose is None:
+        value = states[var.step][parent_var]
+        if value == self.task.initial[parent_var]:
+            return None
+        robot = self.scene.robots.get(self.task.variables[parent_var].values[value])
+        if robot is None or robot.held_pose is None or len(robot.held_pose) != var.point_dim:
             return None
         return list(robot.held_pose)
 
