@@ -107,8 +107,6 @@ class _Factor:
 class GraphNLPFactory:
     """Builds the graph-NLP of a state sequence for one compiled problem."""
 
-    initial_guess_takes_states = True   # `initial_guess(var, states)`: see `_Run.build_graph`
-
     def __init__(self, problem: m.Problem, task: SASTask, robot_dims: RobotDims | None = None):
         self.problem = problem
         self.domain = problem.domain

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
-from gnppdsl.solve.loop import Compiled
+from gnppdsl.solve.loop import Compiled, plan_graph
 
 
 @dataclass
@@ -30,7 +29,6 @@ def brute_force(compiled: Compiled, max_length: int, restarts: int = 3, toleranc
     from gnppdsl.logic.planner import IncrementalPlanner
     from gnppdsl.nlp.casadi_expr import BodyCompiler
     from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
-    from gnppdsl.nlp.graph import GraphNLP
 
     deadline = time.perf_counter() + time_limit
     planner = IncrementalPlanner(compiled.task, max_horizon=max_length)
@@ -48,14 +46,7 @@ def brute_force(compiled: Compiled, max_length: int, restarts: int = 3, toleranc
         plan = res.plan
         checked += 1
         lengths[len(plan)] = lengths.get(len(plan), 0) + 1
-        variables = factory.variables(plan.states)
-        guess: dict[Any, Any] = {}
-        if hasattr(factory, "initial_guess"):
-            for v in variables:
-                g = factory.initial_guess(v)
-                if g is not None:
-                    guess[v] = g
-        graph = GraphNLP.from_factors(factory.factors(plan.states), variables, initial_guess=guess)
+        graph = plan_graph(factory, plan.states)
         solver = FeasibilitySolver(compiled.geometry, SolverOptions(tolerance=tolerance, restarts=restarts),
                                    compiler=compiler)
         if solver.solve(graph, seed=seed).feasible:

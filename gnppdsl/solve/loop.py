@@ -277,6 +277,22 @@ def canonical(obj: Any) -> str:
 # ---------------------------------------------------------------------------------------------
 # trajectories: warm start by interpolation between the mode switches (Appendix C)
 # ---------------------------------------------------------------------------------------------
+def plan_graph(factory: Any, states: Sequence[Sequence[int]], name: str = "G") -> Any:
+    """The graph-NLP of a state sequence: the factory's factors and variables, with its initial
+    guess for each variable at these states (e.g. a held object's pose; see
+    `GraphNLPFactory.initial_guess`) as the start of every NLP built from it."""
+    from gnppdsl.nlp.graph import GraphNLP
+
+    variables = factory.variables(states)
+    guess = {}
+    if hasattr(factory, "initial_guess"):
+        for v in variables:
+            g = factory.initial_guess(v, states)
+            if g is not None:
+                guess[v] = np.asarray(g, float)
+    return GraphNLP.from_factors(factory.factors(states), variables, name=name, initial_guess=guess)
+
+
 def is_trajectory(v: VarInstance) -> bool:
     """A motion variable (tagged `traj` or with waypoints), solved after the mode switches."""
     return TRAJ in v.tags or bool(v.waypoints)
@@ -1054,21 +1070,8 @@ class _Run:
         return solver
 
     def build_graph(self, states: Sequence[Sequence[int]]) -> Any:
-        from gnppdsl.nlp.graph import GraphNLP
-
         t0 = time.perf_counter()
-        factory = self.compiled.factory
-        factors = factory.factors(states)
-        variables = factory.variables(states)
-        guess = {}
-        if hasattr(factory, "initial_guess"):
-            # the compiled factory reads the plan's states (a held object's pose); others may not
-            at = getattr(factory, "initial_guess_takes_states", False)
-            for v in variables:
-                g = factory.initial_guess(v, states) if at else factory.initial_guess(v)
-                if g is not None:
-                    guess[v] = np.asarray(g, float)
-        graph = GraphNLP.from_factors(factors, variables, name="G", initial_guess=guess)
+        graph = plan_graph(self.compiled.factory, states)
         self.stats.factory_time += time.perf_counter() - t0
         return graph
 

@@ -105,7 +105,7 @@ class ToyFactory:
                                                 for k in range(W - 1))))
         return out
 
-    def initial_guess(self, v: VarInstance):
+    def initial_guess(self, v: VarInstance, states=None):
         return None
 
 

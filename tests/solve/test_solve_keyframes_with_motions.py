@@ -28,7 +28,7 @@ def _far_keyframes():
     end of `side` (2.25): the keyframes start there, b2's held pose stays there, and its first
     motion (from its spot at 1.0, 4 waypoints of at most 0.3) is out of reach between them."""
     compiled = occupied_problem(waypoints=4)
-    compiled.factory.initial_guess = lambda v: [2.25] if v.kind == "pose" and v.args == ("b2",) else None
+    compiled.factory.initial_guess = lambda v, states=None: [2.25] if v.kind == "pose" and v.args == ("b2",) else None
     return compiled
 
 
