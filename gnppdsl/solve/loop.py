@@ -39,6 +39,7 @@ from gnppdsl.compile.sas import PartialState, SASTask
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
 from gnppdsl.errors import UserError
+from gnppdsl.ir.expr import Slot
 from gnppdsl.ir.model import SOLVER_ORDERS as ORDERS
 from gnppdsl.solve.result import (NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats,
                                   Step)
@@ -548,13 +549,7 @@ class _Checker:
         if len(point) == len(modes.variables) and \
                 run.violation(modes.factor_instances, point, modes.variables) <= run.options.tolerance:
             return
-        opts = self.solver.options
-        opts.time_limit = max(0.05, run.remaining())
-        with overridden(opts, restarts=0):
-            r = self.solver.solve(modes, warm_start=point, seed=run.options.seed)
-        run.nlp_calls += 1
-        if not r.feasible and time.perf_counter() >= run.deadline:
-            raise _TimeUp()
+        r = self.local_solve(modes, point)
         self.values.update(r.values if r.feasible else
                            {v: x for v, x in r0.values.items() if v in modes.variables})
 
@@ -566,7 +561,9 @@ class _Checker:
         solver's random restarts come before its polish, so a first run that stops at a tiny
         residual (Lab 1, no_col_traj: 2.7e-5 on a placement row) was restarted from a random
         point and came back with a feasible but far-off configuration, from which the motions
-        of the full graph did not converge; the polish alone solves it near the start."""
+        of the full graph did not converge; the polish alone solves it near the start.
+        (Also the one-start solve of `consistent_keyframes` and `keyframes_with_motions`.)
+        A run cut short by the time limit raises _TimeUp: it is no verdict."""
         run = self.run
         opts = self.solver.options
         # On the plan's graph the final polish of a point far from feasible is left to
@@ -581,6 +578,8 @@ class _Checker:
         with overridden(opts, restarts=0, **polish):
             r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
         run.nlp_calls += 1
+        if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
+            raise _TimeUp()
         return r
 
     def motions_between_keyframes(self, g: Any, trajs: Sequence[VarInstance], warm: dict) -> Any:
@@ -670,19 +669,11 @@ class _Checker:
         the plan, so the keyframes are solved together with that motion only. Its iteration
         costs the mode switches plus one motion, against every motion in the joint solve of
         g (Lab 5: 40-80 s for 8-10 phases)."""
-        run = self.run
         m = g.subgraph(variables=[v for v in g.variables if not v.waypoints or v.step in phases],
                        suffix="{keyframes+motions " + ",".join(map(str, phases)) + "}")
         start = {v: warm[v] for v in m.variables if v in warm}
         start.update({v: self.values[v] for v in m.variables if v in self.values and not v.waypoints})
-        opts = self.solver.options
-        opts.time_limit = max(0.05, run.remaining())
-        with overridden(opts, restarts=0):
-            r = self.solver.solve(m, warm_start=start, seed=run.options.seed)
-        run.nlp_calls += 1
-        if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
-            raise _TimeUp()
-        return r
+        return self.local_solve(m, start)
 
     def idle_motions(self, s: Any, i: int) -> dict:
         """The trajectories of phase i whose keyframes at i and i+1 are equal up to IDLE_MOTION
@@ -1511,8 +1502,6 @@ class StampedValues(dict):
 def equality_pair(f: FactorInstance) -> tuple[VarInstance, VarInstance] | None:
     """The two variables of a factor whose only constraint is `x0 == x1` between its two
     variables of the same kind of space (e.g. `same(pose(o), pose(o)')`), else None."""
-    from gnppdsl.ir.expr import Slot
-
     if len(f.variables) != 2 or len(f.body) != 1:
         return None
     c, (a, b) = f.body[0], f.variables
