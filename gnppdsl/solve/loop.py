@@ -1237,7 +1237,7 @@ class _Run:
         if self.options.order == "full_first" and len(levels) > 1:
             levels.insert(0, (None, graph))
         elif self.options.order == "staged" and len(levels) > 1:
-            levels = self.staged(graph, levels)
+            levels = self.staged(graph, levels, solver.iteration_cost)
         x_star: dict | None = None            # convergence point of the infeasible full graph
         full_seen = False
         for index, (rule, g_r) in enumerate(levels):
@@ -1334,11 +1334,13 @@ class _Run:
         return ("solution", {})
 
     @staticmethod
-    def staged(graph: Any, levels: list) -> list:
-        """Order "staged": the small relaxation levels (at most STAGED_FRACTION of the factors of
-        the mode-switch graph), then the full graph, then the other levels (only the mode-switch
-        graph among them when it is one), then the full graph again (its cached verdict: Alg. 1
-        searches it when no level gives a conflict).
+    def staged(graph: Any, levels: list, cost: Callable[[Any], float] = lambda g: g.n_factors) -> list:
+        """Order "staged": the small relaxation levels (an ipopt iteration on them costs at most
+        STAGED_FRACTION of one on the mode-switch graph, by `cost`: the loop passes
+        `FeasibilitySolver.iteration_cost`, distance rows weighted; the default counts factors),
+        then the full graph, then the other levels (only the mode-switch graph among them when
+        it is one), then the full graph again (its cached verdict: Alg. 1 searches it when no
+        level gives a conflict).
 
         Why (measured on Lab 4, two Panda arms): the cost of an ipopt iteration grows with the
         collision factors between robot links and objects, ~0.1 s on a 6-step mode-switch graph
@@ -1350,9 +1352,9 @@ class _Run:
         Alg. 1: every level is still a relaxation of the plan's graph."""
         full = levels[-1]
         modes_graph = graph.apply_relaxation({TRAJ}, "modes")
-        modes = modes_graph.n_factors or graph.n_factors
-        small = [lv for lv in levels[:-1] if lv[1].n_factors <= STAGED_FRACTION * modes]
-        large = [lv for lv in levels[:-1] if lv[1].n_factors > STAGED_FRACTION * modes]
+        modes = cost(modes_graph if modes_graph.n_factors else graph)
+        small = [lv for lv in levels[:-1] if cost(lv[1]) <= STAGED_FRACTION * modes]
+        large = [lv for lv in levels[:-1] if cost(lv[1]) > STAGED_FRACTION * modes]
         # When a large level is the mode-switch graph itself (the full graph without motions),
         # it alone is searched: the full graph's check already solved it (no new NLP before
         # Alg. 1 starts on its slices), while every other large level costs a whole new solve

@@ -45,6 +45,46 @@ def test_staged_puts_small_levels_first_and_large_ones_after_the_full_graph():
     assert loop._Run.staged(full[1], [a, c, d, modes_level, full]) == [a, full, modes_level, full]
 
 
+def test_staged_weighs_levels_by_the_cost_it_is_given():
+    """With a cost per iteration (the loop passes `FeasibilitySolver.iteration_cost`), a level
+    with more than half of the mode-switch graph's factors but a small share of its cost is a
+    small level, and a level with few factors but most of the cost a large one."""
+    full = (None, _G(300, modes=100))
+    cheap, dear = ("cheap", _G(80, tag="cheap")), ("dear", _G(20, tag="dear"))
+    cost = {"cheap": 100.0, "dear": 900.0, "modes": 1000.0}
+    by_cost = loop._Run.staged(full[1], [cheap, dear, full], lambda g: cost[g.factor_refs[0][0]])
+    assert by_cost == [cheap, full, dear, full]
+    assert loop._Run.staged(full[1], [cheap, dear, full]) == [dear, full, cheap, full]   # by factors
+
+
+def test_on_lab3_the_level_without_collisions_goes_before_the_full_graph():
+    """Lab 3's first plan (the right arm puts b5 on pad_l, out of its reach): the level without
+    collisions keeps 20 of the mode-switch graph's 38 factors, so by factor count it would wait
+    for the full graph; its distance rows are few (the fingers' clearance), so by the cost of an
+    iteration it goes first, where its small NLPs find the reach conflict."""
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+
+    c = load_and_compile(str(PLANAR.parent / "lab" / "lab3.pntc"))
+    states = plan_states(c.task, parse_plan(c.task, "pick(b5, right_arm, table); put(b5, right_arm, pad_l)"))
+    g = loop.plan_graph(c.factory, states)
+    levels = [(r, g.apply_relaxation(r.dropped, r.name)) for r in c.relaxations if r.dropped] + [(None, g)]
+    names = {id(lv[1]): (lv[0].name if lv[0] else "full") for lv in levels}
+    solver = FeasibilitySolver(c.geometry, compiler=c.body_compiler("off"))
+    modes = g.apply_relaxation({loop.TRAJ}, "modes")
+    no_col = dict((r.name, h) for r, h in levels[:-1])["no_col_traj"]
+    assert no_col.n_factors > loop.STAGED_FRACTION * modes.n_factors
+    assert solver.iteration_cost(no_col) <= loop.STAGED_FRACTION * solver.iteration_cost(modes)
+
+    def order(cost=None):
+        got = loop._Run.staged(g, levels) if cost is None else loop._Run.staged(g, levels, cost)
+        return [names[id(h)] for _, h in got]
+
+    by_cost, by_count = order(solver.iteration_cost), order()
+    assert by_cost.index("no_col_traj") < by_cost.index("full")
+    assert "no_col_traj" not in by_count[:by_count.index("full")]     # after it, or not at all
+
+
 @pytest.mark.parametrize("name, n", [("p3_occupied", 4), ("t1_swap", None)])
 def test_staged_answers_are_checked_independently(name, n):
     c = load_and_compile(str(PLANAR / f"{name}.pntc"))
