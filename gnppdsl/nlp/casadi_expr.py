@@ -33,7 +33,7 @@ from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.errors import UserError
 from gnppdsl.ir.builtins import BUILTINS
 from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
-from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Body, Geometry
+from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, GEOMETRY_PRIMITIVES, Body, Geometry
 
 NORM_EPS = 1e-18
 """Added under the square root of `norm` so its gradient exists at 0 (value bias <= 1e-9)."""
@@ -751,6 +751,7 @@ class BodyCompiler:
         # per-instance memo (by identity; the instance is kept alive in the value): lifting and
         # hashing a body costs more than a lookup, and every subgraph re-assembles its factors
         self._instances: dict[int, tuple[FactorInstance, CompiledBody, np.ndarray]] = {}
+        self._rows: dict[tuple, tuple[int, bool]] = {}      # see `rows_of`
         self.compiled = 0           # number of distinct Functions built (for stats / tests)
         self._hessians: dict[int, tuple[CompiledBody, ca.Function]] = {}
         self._jacobians: dict[int, tuple[CompiledBody, ca.Function]] = {}
@@ -882,6 +883,22 @@ class BodyCompiler:
         if hessian:
             return ca.Function(F.name() + "_hess", [*slots, p, lam], [M])
         return ca.Function(F.name() + "_jac", [*slots, p], [M])
+
+    def rows_of(self, factor: FactorInstance) -> tuple[int, bool]:
+        """(number of rows, whether it queries signed distances) of a factor's body,
+        remembered by its template, number of (unrolled) constraints and slot sizes, which fix
+        both: the types of a template's expressions are static, and distance queries are
+        written in templates (the state-dependent expansion of `world(x)` adds FK calls, never
+        distances). Why not `compile(factor)`: a factor instance of a new plan graph misses the
+        instance cache, and computing its structure key (lifting constants, renaming objects)
+        costs ~1 ms for a 20-waypoint body; the loop asks for every factor of every relaxation
+        level (`FeasibilitySolver.iteration_cost`)."""
+        key = (factor.template, len(factor.body), tuple(v.dim for v in factor.variables))
+        hit = self._rows.get(key)
+        if hit is None:
+            cb, _ = self.compile(factor)
+            hit = self._rows[key] = (cb.n_rows, bool(DISTANCE_PRIMITIVES & cb.primitives))
+        return hit
 
     def compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
         """(compiled body, parameter values) for one factor instance."""
