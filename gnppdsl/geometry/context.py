@@ -17,8 +17,8 @@ import casadi as ca
 import numpy as np
 
 from gnppdsl.errors import UserError
-from gnppdsl.geometry.distance import (ConvexBody, WitnessCallback, se2_to_matrix, se2_to_rp, signed_distance_expr,
-                                       witness)
+from gnppdsl.geometry.distance import (ConvexBody, WitnessCallback, se2_to_matrix, se2_to_rp, signed_distance,
+                                       signed_distance_expr)
 from gnppdsl.geometry.features import N_OUT, model_expression
 from gnppdsl.geometry.kinematics import FrameChain, fk_function, fk_rp_function, fn_name, quat_to_rotation
 from gnppdsl.geometry.robots import RobotModel, load_robot, se3_to_matrix
@@ -286,9 +286,9 @@ class GeometryContext:
 
     def sdist_numeric(self, body_a: Any, pose_a: np.ndarray, body_b: Any, pose_b: np.ndarray) -> float:
         Ta, Tb = se3_to_matrix(pose_a), se3_to_matrix(pose_b)
-        return float(witness(self.body(body_a), Ta[:3, :3], Ta[:3, 3], self.body(body_b), Tb[:3, :3], Tb[:3, 3])[0])
+        return signed_distance(self.body(body_a), Ta[:3, :3], Ta[:3, 3], self.body(body_b), Tb[:3, :3], Tb[:3, 3])
 
     def sdist2_numeric(self, body_a: Any, pose_a: np.ndarray, body_b: Any, pose_b: np.ndarray) -> float:
         Ta, Tb = se2_to_matrix(pose_a), se2_to_matrix(pose_b)
-        return float(witness(self.body(body_a, True), Ta[:3, :3], Ta[:3, 3], self.body(body_b, True),
-                             Tb[:3, :3], Tb[:3, 3])[0])
+        return signed_distance(self.body(body_a, True), Ta[:3, :3], Ta[:3, 3], self.body(body_b, True),
+                               Tb[:3, :3], Tb[:3, 3])

@@ -212,18 +212,20 @@ class RobotModel:
 
 
 def se3_to_matrix(pose) -> np.ndarray:
-    """[x, y, z, qx, qy, qz, qw] -> 4x4 homogeneous matrix (quaternion normalised)."""
-    p = np.asarray(pose, dtype=float).ravel()
-    x, y, z, w = p[3:7] / np.linalg.norm(p[3:7])
-    R = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    """[x, y, z, qx, qy, qz, qw] -> 4x4 homogeneous matrix (quaternion normalised).
+
+    On Python floats and one array construction: the numeric checker converts every pose of
+    every distance query (lab5: 44k per solve), where numpy's per-element arithmetic and
+    `np.eye` cost 16 us a call against ~3 us."""
+    px, py, pz, x, y, z, w = np.asarray(pose, dtype=float).ravel()[:7].tolist()
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w), px],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w), py],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y), pz],
+        [0.0, 0.0, 0.0, 1.0],
     ])
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = p[:3]
-    return T
 
 
 def matrix_to_se3(T) -> np.ndarray:

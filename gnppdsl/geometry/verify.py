@@ -23,7 +23,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from gnppdsl.errors import UserError
-from gnppdsl.geometry.distance import ConvexBody, se2_to_matrix, witness
+from gnppdsl.geometry.distance import ConvexBody, se2_to_matrix, signed_distance
 from gnppdsl.geometry.robots import se3_to_matrix
 from gnppdsl.geometry.shapes import shape_vertices
 
@@ -198,7 +198,7 @@ def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterabl
                 continue
         if _ignored(a, b, ign):
             continue
-        d = witness(a.body, a.T[:3, :3], a.T[:3, 3], b.body, b.T[:3, :3], b.T[:3, 3])[0]
+        d = signed_distance(a.body, a.T[:3, :3], a.T[:3, 3], b.body, b.T[:3, :3], b.T[:3, 3])
         out.append(PairDistance(a.name, b.name, float(d)))
     out.sort(key=lambda p: p.distance)
     return out
@@ -309,7 +309,7 @@ def resting_on(ctx_or_scene, obj: str, obj_value, support: str, support_value=No
     To, Ts = entity_matrix(ctx, obj, obj_value), entity_matrix(ctx, support, support_value)
     bo = ctx.body(obj, planar)
     bs = ctx.body(support, planar)
-    d = float(witness(bo, To[:3, :3], To[:3, 3], bs, Ts[:3, :3], Ts[:3, 3])[0])
+    d = signed_distance(bo, To[:3, :3], To[:3, 3], bs, Ts[:3, :3], Ts[:3, 3])
     vs = world_vertices(bs, Ts)
     if planar:
         inside = _in_polygon(To[:2, 3], _hull2(vs[:, :2]))
