@@ -33,7 +33,7 @@ from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.errors import UserError
 from gnppdsl.ir.builtins import BUILTINS
 from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
-from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, GEOMETRY_PRIMITIVES, Body, Geometry
+from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Body, Geometry
 
 NORM_EPS = 1e-18
 """Added under the square root of `norm` so its gradient exists at 0 (value bias <= 1e-9)."""
@@ -751,7 +751,7 @@ class BodyCompiler:
         # per-instance memo (by identity; the instance is kept alive in the value): lifting and
         # hashing a body costs more than a lookup, and every subgraph re-assembles its factors
         self._instances: dict[int, tuple[FactorInstance, CompiledBody, np.ndarray]] = {}
-        self._rows: dict[tuple, tuple[int, bool]] = {}      # see `rows_of`
+        self._bodies: dict[tuple, tuple[tuple, CompiledBody, np.ndarray]] = {}   # see `compile`
         self.compiled = 0           # number of distinct Functions built (for stats / tests)
         self._hessians: dict[int, tuple[CompiledBody, ca.Function]] = {}
         self._jacobians: dict[int, tuple[CompiledBody, ca.Function]] = {}
@@ -884,28 +884,29 @@ class BodyCompiler:
             return ca.Function(F.name() + "_hess", [*slots, p, lam], [M])
         return ca.Function(F.name() + "_jac", [*slots, p], [M])
 
-    def rows_of(self, factor: FactorInstance) -> tuple[int, bool]:
-        """(number of rows, whether it queries signed distances) of a factor's body,
-        remembered by its template, number of (unrolled) constraints and slot sizes, which fix
-        both: the types of a template's expressions are static, and distance queries are
-        written in templates (the state-dependent expansion of `world(x)` adds FK calls, never
-        distances). Why not `compile(factor)`: a factor instance of a new plan graph misses the
-        instance cache, and computing its structure key (lifting constants, renaming objects)
-        costs ~1 ms for a 20-waypoint body; the loop asks for every factor of every relaxation
-        level (`FeasibilitySolver.iteration_cost`)."""
-        key = (factor.template, len(factor.body), tuple(v.dim for v in factor.variables))
-        hit = self._rows.get(key)
-        if hit is None:
-            cb, _ = self.compile(factor)
-            hit = self._rows[key] = (cb.n_rows, bool(DISTANCE_PRIMITIVES & cb.primitives))
-        return hit
-
     def compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
-        """(compiled body, parameter values) for one factor instance."""
+        """(compiled body, parameter values) for one factor instance.
+
+        Remembered per instance, and per body: the factory gives every instance of one
+        resolution (the same rule, call and consulted facts at any step of any plan) the same
+        body object with its variables shifted in time (`GraphNLPFactory._cached_instance`),
+        and the compiled body and parameters depend only on the template, the body and the
+        slots' signatures. Why: a new plan's graph is made of new instances, and computing a
+        body's structure key (lifting constants, renaming objects) costs ~1.5 ms for a
+        20-waypoint body (lab5: 841 such computations, ~1 s, per solve)."""
         hit = self._instances.get(id(factor))
         if hit is not None and hit[0] is factor:
             return hit[1], hit[2]
-        cb, params = self._compile(factor)
+        sigs = tuple(SlotSignature.of(v) for v in factor.variables)
+        key = (id(factor.body), factor.template, sigs)
+        same = self._bodies.get(key)
+        if same is not None and same[0] is factor.body:
+            cb, params = same[1], same[2]
+        else:
+            cb, params = self._compile(factor, sigs)
+            if len(self._bodies) > 200_000:
+                self._bodies.clear()
+            self._bodies[key] = (factor.body, cb, params)     # keeps the body alive: ids stay unique
         if len(self._instances) > 200_000:
             self._instances.clear()
         self._instances[id(factor)] = (factor, cb, params)
@@ -918,9 +919,8 @@ class BodyCompiler:
             key = self._names[name] = _Named(sk(name) if sk is not None else ("name", name))
         return key
 
-    def _compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
+    def _compile(self, factor: FactorInstance, sigs: tuple) -> tuple[CompiledBody, np.ndarray]:
         key_body, params = lift_constants(factor.body)
-        sigs = tuple(SlotSignature.of(v) for v in factor.variables)
         # object and robot names by what their geometry depends on (`structure_key`): bodies
         # that differ only in the name of a same-shaped block share one Function
         key = (factor.template, _map_objs(key_body, self._structure_of), sigs)

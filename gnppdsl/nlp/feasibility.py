@@ -294,12 +294,12 @@ class FeasibilitySolver:
         every other row 1. Why not the factor count: a factor may be one row or a hundred, and
         a level without collisions costs a fraction of the mode-switch graph's iteration even
         when it keeps more than half of its factors (Lab 3: 20 of 38 factors, 2 vs 6.4 ms per
-        iteration). Cheap: the rows of a template shape are counted once per run
-        (`BodyCompiler.rows_of`)."""
+        iteration). Cheap: the compiled bodies are remembered per template structure and per
+        factory body (`BodyCompiler.compile`), and every level's factors are the plan graph's."""
         cost = 0.0
         for _, f in graph.iter_factors():
-            n_rows, distances = self.compiler.rows_of(f)
-            cost += n_rows * (DISTANCE_ROW_COST if distances else 1)
+            cb, _ = self.compiler.compile(f)
+            cost += cb.n_rows * (DISTANCE_ROW_COST if DISTANCE_PRIMITIVES & cb.primitives else 1)
         return cost
 
     # -- assembly ---------------------------------------------------------------------------
