@@ -116,10 +116,26 @@ class FeasibilityResult:
     iterations: int
     status: str
     starts: int = 1                                # number of ipopt runs (1 + restarts used)
+    # per factor, the largest |multiplier| of its elastic rows at the convergence point (see
+    # `active`); empty when the point is not the solver's own last iterate
+    activity: dict[FactorRef, float] = field(default_factory=dict)
 
     def violated(self, tolerance: float) -> list[FactorRef]:
         """Factors violated at the convergence point (input of the convergence heuristic)."""
         return [r for r, v in self.violations.items() if v > tolerance]
+
+    def active(self, tolerance: float, share: float = 0.1) -> list[FactorRef]:
+        """The support of the infeasibility at the convergence point: the violated factors and
+        those whose multiplier is at least `share` of the penalty weight. Why: at the optimum of
+        the elastic form a violated row has multiplier 1 (its slack's weight) and a row that
+        holds has one in [0, 1], near 1 when it is what keeps the violated rows from being
+        satisfied (planar p5: the spot's pose, the kinematic switch and the reach box that a
+        violated grasp fights carry 0.8-0.9, the other rows 1e-11 to 4e-3). These factors,
+        without the rest of the graph, are the first candidate of the convergence heuristic."""
+        if not self.activity:
+            return []
+        violated = set(self.violated(tolerance))
+        return [r for r in self.violations if r in violated or self.activity.get(r, 0.0) >= share]
 
 
 class _Monitor(ca.Callback):
@@ -631,7 +647,7 @@ class FeasibilitySolver:
 
     # -- solving ----------------------------------------------------------------------------
     def _run(self, a: _Assembled, x0: np.ndarray, rho: float
-             ) -> tuple[np.ndarray, float, int, str]:
+             ) -> tuple[np.ndarray, float, int, str, np.ndarray | None]:
         h0 = np.asarray(a.h_fun(x0, a.params)).reshape(-1)
         hi, he = h0[~a.kinds], h0[a.kinds]
         z0 = np.concatenate([x0, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
@@ -643,12 +659,26 @@ class FeasibilitySolver:
         st = a.solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
+        lam = np.asarray(sol["lam_g"]).reshape(-1)
         status = str(st.get("return_status", ""))
         if a.monitor is not None and a.monitor.stalled and a.monitor.best_z is not None:
             z = a.monitor.best_z          # the best point seen, not where ipopt wandered to
+            lam = None                    # ... whose multipliers are not known
         if a.monitor is not None and a.monitor.timed_out:
             status = "Maximum_WallTime_Exceeded"      # the deadline, not a verdict
-        return z[:a.n_x], float(np.sum(z[a.n_x:])), int(st.get("iter_count", 0)), status
+        return z[:a.n_x], float(np.sum(z[a.n_x:])), int(st.get("iter_count", 0)), status, lam
+
+    @staticmethod
+    def _activity(a: _Assembled, lam: np.ndarray | None) -> dict[FactorRef, float]:
+        """Largest |multiplier| of each factor's elastic rows (g holds the inequality rows
+        first, then the equality rows, in the order of h)."""
+        if lam is None or not np.all(np.isfinite(lam)):
+            return {}
+        g_row = np.empty(a.kinds.size, dtype=np.int64)
+        g_row[~a.kinds] = np.arange(a.n_ineq)
+        g_row[a.kinds] = a.n_ineq + np.arange(a.n_eq)
+        mags = np.abs(lam[g_row])
+        return {r: float(mags[i0:i1].max()) if i1 > i0 else 0.0 for r, i0, i1 in a.factor_rows}
 
     def _verdict(self, a: _Assembled, x: np.ndarray) -> tuple[dict, dict[FactorRef, float], float]:
         x = x.copy()
@@ -683,18 +713,18 @@ class FeasibilitySolver:
         polished = False                 # the current best is a polished point
         for k in range(first_attempt, 1 + max(0, self.options.restarts)):
             x0 = self._start(a, graph, warm_start, initial_guess, seed, k)
-            x, slack, it, status = self._run(a, x0, self.options.regularisation)
+            x, slack, it, status, lam = self._run(a, x0, self.options.regularisation)
             iters += it
             starts += 1
             values, per, worst = self._verdict(a, x)
             if best is None or worst < best[2]:
-                best, polished = (values, per, worst, slack, status, x), False
+                best, polished = (values, per, worst, slack, status, x, lam), False
             if tol < worst <= self.options.polish_below and self.options.polish:
-                x, slack, it, status = self._run(a, x, self.options.regularisation * 1e-4)
+                x, slack, it, status, lam = self._run(a, x, self.options.regularisation * 1e-4)
                 iters += it
                 values, per, worst = self._verdict(a, x)
                 if worst < best[2]:
-                    best, polished = (values, per, worst, slack, status, x), True
+                    best, polished = (values, per, worst, slack, status, x, lam), True
             if best[2] <= tol:
                 break
         if best is None:
@@ -703,16 +733,16 @@ class FeasibilitySolver:
             # The pull towards the start can outweigh the L1 penalty of a badly scaled row
             # (gradient below rho): re-solve the best point with a much weaker pull before
             # believing an infeasible verdict.
-            x, slack, it, status = self._run(a, best[5], self.options.regularisation * 1e-4)
+            x, slack, it, status, lam = self._run(a, best[5], self.options.regularisation * 1e-4)
             iters += it
             values, per, worst = self._verdict(a, x)
             if worst < best[2]:
-                best = (values, per, worst, slack, status, x)
-        values, per, worst, slack, status, _ = best
+                best = (values, per, worst, slack, status, x, lam)
+        values, per, worst, slack, status, _, lam = best
         dt = time.perf_counter() - t0
         self.solve_time += dt
         return FeasibilityResult(worst <= tol, values, per, worst, slack, dt, iters, status,
-                                 starts)
+                                 starts, self._activity(a, lam) if worst > tol else {})
 
 
 def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarray] | None = None,

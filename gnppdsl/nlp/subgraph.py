@@ -204,6 +204,14 @@ def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
     point x* of its solve. Never returns a feasible graph (every candidate is checked).
 
     Candidates, each kept only if `check` finds it infeasible:
+    - M'_a, the *support* of the infeasibility: the violated factors and those whose
+      multipliers at x* show they hold the violated ones off (`FeasibilityResult.active`),
+      tried first when the solve reported multipliers. Why: it is the contradiction itself
+      (planar p5: the spot's pose, the pick's kinematic switch, the gripper's reach box and the
+      violated grasp, 4 of 13 factors), where M'_v also takes every other factor on those
+      variables and M' misses the rows on the other side of the contradiction. A feasible
+      M'_a says nothing about M'_v (not a subgraph of it), so M'_v is still tried; M' is a
+      subgraph of M'_a and is then skipped.
     - M'_v, the subgraph *induced* by the variables of the violated factors (every factor of
       `graph` on those variables, Definition 4.2). Tried first because the violated factors
       alone usually lack the constraints that pin their variables: the elastic optimum puts
@@ -223,17 +231,28 @@ def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
         if not violated:
             break
         xs = {v for ref in violated for v in cur.graph.neighbors(ref)}
-        candidates = [cur.subgraph(variables=xs, suffix="{v}")]
+        candidates = []
+        support = [ref for ref in r.active(tolerance) if ref in cur.graph]
+        if len(support) > len(violated):
+            candidates.append(cur.subgraph(factors=support, suffix="{a}"))
+        candidates.append(cur.subgraph(variables=xs, suffix="{v}"))
         if len(violated) > 1:
             candidates.append(cur.subgraph(factors=violated, suffix="{n}"))
         progressed = False
+        feasible: list[frozenset] = []     # factor sets of candidates found feasible
         for m in candidates:
+            shorter = m.name.endswith("{a}") and m.steps is not None and cur.steps is not None \
+                and m.steps[1] - m.steps[0] < cur.steps[1] - cur.steps[0]
             if m.n_factors == 0 or m.n_factors >= cur.n_factors or m.signature() == cur.signature() \
-                    or m.n_factors > max_fraction * cur.n_factors:
+                    or (m.n_factors > max_fraction * cur.n_factors and not shorter):
                 continue
+            refs = frozenset(m.factor_refs)
+            if any(refs <= f for f in feasible):
+                continue                   # a subgraph of a feasible candidate is feasible
             verdict = check(m)
             if _ok(verdict):
-                break                      # a feasible candidate: its subgraphs are feasible too
+                feasible.append(refs)
+                continue
             cur, progressed = m, True
             if not isinstance(verdict, FeasibilityResult):
                 return cur                 # no convergence point to go on from
@@ -330,8 +349,10 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
     rules = list(relaxations) if "r" in switches else []
     rules = [r for r in rules if r.dropped] + [FULL]
 
-    def time_search(g: GraphNLP) -> tuple[bool, tuple[int, int] | None]:
-        """Alg. 1's BinarySearchTime, with the second opinion on a kept multi-step range."""
+    def time_search(g: GraphNLP, component: GraphNLP) -> tuple[bool, tuple[int, int] | None]:
+        """Alg. 1's BinarySearchTime on g (the component or a candidate inside it), with the
+        second opinion on a kept multi-step range (whatever its size only if it is the whole
+        component)."""
         def hint(s: GraphNLP) -> tuple[int, int] | None:
             return violated_steps(s, checker.memo.get(s.signature()), tol)
 
@@ -341,7 +362,7 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
                 and _strict_slices_feasible(g, rng, checker):
             rechecked.add(rng)
             kept = g if rng == g.steps else g.time_slice(*rng)
-            if kept is not g and kept.n_factors <= recheck_above:
+            if kept.signature() != component.signature() and kept.n_factors <= recheck_above:
                 break
             second = recheck(kept)
             if not _ok(second):
@@ -362,12 +383,12 @@ def find_infeasible_subgraph(graph: GraphNLP, relaxations: Sequence[Relaxation] 
             if "t" in switches:
                 if "n" in switches:
                     target = shrink_before_time_search(comp, checker, tol)
-                feasible, rng = time_search(target)
+                feasible, rng = time_search(target, comp)
                 if feasible and target is not comp:
                     # the candidate turned out feasible on its second opinion: search the
                     # component itself, as Alg. 1 has it (never take its verdict for comp's)
                     target = comp
-                    feasible, rng = time_search(comp)
+                    feasible, rng = time_search(comp, comp)
             else:
                 feasible = checker(comp)
                 rng = None if feasible else comp.steps

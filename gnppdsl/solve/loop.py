@@ -830,8 +830,10 @@ class _Checker:
             if g.signature() in self.unconfirmed:
                 self.unconfirmed.add(c.signature())
             if c.signature() not in self.results:
+                activity = getattr(r, "activity", {})
                 self.results[c.signature()] = FeasibilityResult(
-                    False, vals, per, worst, r.slack, 0.0, 0, f"the only violated component of {g.name}", 0)
+                    False, vals, per, worst, r.slack, 0.0, 0, f"the only violated component of {g.name}", 0,
+                    {ref: activity[ref] for ref in c.factor_refs if ref in activity})
                 self.run.stats.inferred_verdicts += 1
 
     def known_solution(self, g: Any) -> Any:
