@@ -221,9 +221,11 @@ def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
       are free, so it fails only if its template cannot hold for its constants, which the
       time search already isolates (a one-factor time slice).
     Repeated on the result (up to `rounds` times) while the check returns convergence points.
-    If M'_v is feasible, so is M' (a subgraph of a feasible graph, Property 4.4): stop.
+    A candidate inside one found feasible is skipped (a subgraph of a feasible graph is
+    feasible, Property 4.4): M' after a feasible M'_v or M'_a.
     `max_fraction` < 1: a candidate keeping more than this fraction of the current graph's
-    factors is not checked (it would cost about as much as the graph itself).
+    factors is not checked (it would cost about as much as the graph itself), except M'_a
+    when it spans fewer steps than the graph (it then spares the time search's slices).
     """
     cur, r = graph, result
     for _ in range(rounds):
@@ -231,20 +233,19 @@ def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
         if not violated:
             break
         xs = {v for ref in violated for v in cur.graph.neighbors(ref)}
-        candidates = []
+        candidates = []                    # (subgraph, exempt from max_fraction)
         support = [ref for ref in r.active(tolerance) if ref in cur.graph]
         if len(support) > len(violated):
-            candidates.append(cur.subgraph(factors=support, suffix="{a}"))
-        candidates.append(cur.subgraph(variables=xs, suffix="{v}"))
+            m = cur.subgraph(factors=support, suffix="{a}")
+            candidates.append((m, _spans_fewer_steps(m, cur)))
+        candidates.append((cur.subgraph(variables=xs, suffix="{v}"), False))
         if len(violated) > 1:
-            candidates.append(cur.subgraph(factors=violated, suffix="{n}"))
+            candidates.append((cur.subgraph(factors=violated, suffix="{n}"), False))
         progressed = False
         feasible: list[frozenset] = []     # factor sets of candidates found feasible
-        for m in candidates:
-            shorter = m.name.endswith("{a}") and m.steps is not None and cur.steps is not None \
-                and m.steps[1] - m.steps[0] < cur.steps[1] - cur.steps[0]
+        for m, exempt in candidates:
             if m.n_factors == 0 or m.n_factors >= cur.n_factors or m.signature() == cur.signature() \
-                    or (m.n_factors > max_fraction * cur.n_factors and not shorter):
+                    or (m.n_factors > max_fraction * cur.n_factors and not exempt):
                 continue
             refs = frozenset(m.factor_refs)
             if any(refs <= f for f in feasible):
@@ -260,6 +261,10 @@ def convergence_heuristic(graph: GraphNLP, result: FeasibilityResult,
         if not progressed:
             break
     return cur
+
+
+def _spans_fewer_steps(m: GraphNLP, g: GraphNLP) -> bool:
+    return m.steps is not None and g.steps is not None and m.steps[1] - m.steps[0] < g.steps[1] - g.steps[0]
 
 
 SHRINK_FRACTION = 0.5     # `shrink_before_time_search` tries candidates up to this share of factors
