@@ -272,8 +272,8 @@ SHRINK_FRACTION = 0.5     # `shrink_before_time_search` tries candidates up to t
 
 def shrink_before_time_search(comp: GraphNLP, check: "_Checker", tolerance: float) -> GraphNLP:
     """One round of the convergence heuristic on a whole infeasible component, before the
-    time search: the subgraph induced by the variables of the factors violated at its
-    convergence point, if that is infeasible (checked like any other), else the component.
+    time search: the support of its convergence point or the subgraph induced by the variables
+    of the factors violated there, if infeasible (checked like any other), else the component.
 
     Why first and not only after the time search (Alg. 1 as written): on a long plan the time
     search solves halves and quarters of the component before the heuristic sees it, and
