@@ -259,6 +259,20 @@ def _quat_slices(v: VarInstance) -> list[slice]:
     return [slice(k * d + 3, k * d + 7) for k in range(n)]
 
 
+def _unit_quaternions(v: VarInstance, x: np.ndarray) -> np.ndarray:
+    """x (v's values, modified in place and returned) with every quaternion of v normalised."""
+    for sl in _quat_slices(v):
+        nq = np.linalg.norm(x[sl])
+        if nq > 0:
+            x[sl] = x[sl] / nq
+    return x
+
+
+def _moved(v: VarInstance, val, rng: np.random.Generator, scale: float) -> np.ndarray:
+    """A start: v's value `val` plus normal noise of std `scale`, quaternions renormalised."""
+    return _unit_quaternions(v, np.asarray(val, float).reshape(-1) + rng.normal(0.0, scale, v.dim))
+
+
 def interpolated_trajectory(v: VarInstance, known: Mapping[VarInstance, np.ndarray]
                             ) -> np.ndarray | None:
     """Start for trajectory x_i (motion from step i to i+1): the straight line between the
@@ -647,15 +661,9 @@ class FeasibilitySolver:
         stationary point of the distance rows between them (no direction to separate along);
         from there a one-start solve of two `no_overlap` factors stalled and was called
         infeasible (planar p4, whose wrong verdicts sent a level through a repeated search:
-        14 instead of 11 NLPs). A millimetre gives the rows a direction and leaves every other
+        14 instead of 10 NLPs). A millimetre gives the rows a direction and leaves every other
         start as the guess made it."""
-        rng = np.random.default_rng([seed, zlib.crc32(v.name.encode()), 2])
-        x = np.asarray(val, float).reshape(-1) + rng.normal(0.0, SEPARATION, v.dim)
-        for sl in _quat_slices(v):
-            nq = np.linalg.norm(x[sl])
-            if nq > 0:
-                x[sl] = x[sl] / nq
-        return x
+        return _moved(v, val, np.random.default_rng([seed, zlib.crc32(v.name.encode()), 2]), SEPARATION)
 
     def _perturbed(self, v: VarInstance, val, seed: int, attempt: int) -> np.ndarray:
         """The odd restarts: the graph's initial guess (not the warm start), moved by
@@ -667,12 +675,7 @@ class FeasibilitySolver:
         guess, arms at home and objects where they stand, they solve). The even restarts stay
         random."""
         rng = np.random.default_rng([seed, attempt, zlib.crc32(v.name.encode()), 1])
-        x = np.asarray(val, float).reshape(-1) + rng.normal(0.0, self.options.restart_noise, v.dim)
-        for sl in _quat_slices(v):
-            nq = np.linalg.norm(x[sl])
-            if nq > 0:
-                x[sl] = x[sl] / nq
-        return x
+        return _moved(v, val, rng, self.options.restart_noise)
 
     # -- solving ----------------------------------------------------------------------------
     def _run(self, a: _Assembled, x0: np.ndarray, rho: float
@@ -712,11 +715,7 @@ class FeasibilitySolver:
     def _verdict(self, a: _Assembled, x: np.ndarray) -> tuple[dict, dict[FactorRef, float], float]:
         x = x.copy()
         for v, off in zip(a.variables, a.offsets):
-            for sl in _quat_slices(v):
-                q = x[off + sl.start:off + sl.stop]
-                nq = np.linalg.norm(q)
-                if nq > 0:
-                    x[off + sl.start:off + sl.stop] = q / nq
+            _unit_quaternions(v, x[off:off + v.dim])        # a view: normalised in place
         h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
         viol = np.where(a.kinds, np.abs(h), np.maximum(h, 0.0))
         viol = np.where(np.isnan(viol), np.inf, viol)
