@@ -10,8 +10,9 @@ import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.compile.sas import PartialState
-from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Vec
+from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
 from gnppdsl.nlp.geometry_protocol import Body
+from gnppdsl.nlp.graph import GraphNLP
 
 
 def C(fn, *args):
@@ -156,3 +157,37 @@ def coal_boxes(n: int, c: float):
                   0, ("collision",))
            for i in range(n) for j in range(i + 1, n)]
     return geo, fs
+
+
+# ---- a 2-link arm reaching past a disc (one FK factor, one distance factor) ----------------
+ARM_GEOM = DiscGeometry({"ob": 0.3, "arm2/l1": 0.1})
+ARM_Q = VarInstance("q", (), 0, "joints", 2, lower=(-3.0, -3.0), upper=(3.0, 3.0))
+ARM_O = VarInstance("o", (), 0, "R3", 3)
+
+
+def _pose7(x, y):
+    return Vec((x, y, Num(0.0), Num(0.0), Num(0.0), Num(0.0), Num(1.0)))
+
+
+_IDENTITY7 = _pose7(Num(0.0), Num(0.0))
+_Q_SLOT, _O_SLOT = Slot(0), Slot(1)
+
+
+def _arm_tip():
+    return C("fk", Obj("arm2"), _Q_SLOT, Str("tip"), _IDENTITY7)
+
+
+def arm_reach_graph() -> GraphNLP:
+    """Reach a target with the arm's tip (FK equality rows, no distance) while its link keeps
+    0.2 off a disc whose centre is a free variable held near a nominal place (distance row)."""
+    tip = _arm_tip()
+    reach = factor("toy.reach", [ARM_Q, ARM_O], [
+        Constraint(Index(tip, Num(0)), "==", Num(1.2)),
+        Constraint(Index(tip, Num(1)), "==", Num(0.9)),
+        Constraint(C("sqnorm", C("sub", _O_SLOT, Vec((Num(1.0), Num(-0.2), Num(0.0))))), "<=", Num(0.01)),
+    ], 0)
+    clear = factor("toy.clear", [ARM_Q, ARM_O], [
+        Constraint(C("sdist", C("link", Obj("arm2"), Str("l1")), tip, Obj("ob"),
+                     _pose7(Index(_O_SLOT, Num(0)), Index(_O_SLOT, Num(1)))), ">=", Num(0.2)),
+    ], 0)
+    return GraphNLP([reach, clear])

@@ -9,55 +9,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gnppdsl.compile.factors import VarInstance
-from gnppdsl.ir.expr import Constraint, Index, Num, Obj, Slot, Str, Vec
 from gnppdsl.nlp.evaluate import max_violation
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
-from gnppdsl.nlp.graph import GraphNLP
 
-from nlp_toys import C, DiscGeometry, factor
-
-GEOM = DiscGeometry({"ob": 0.3, "arm2/l1": 0.1})
-Q = VarInstance("q", (), 0, "joints", 2, lower=(-3.0, -3.0), upper=(3.0, 3.0))
-O = VarInstance("o", (), 0, "R3", 3)
-
-
-def _pose(x, y):
-    return Vec((x, y, Num(0.0), Num(0.0), Num(0.0), Num(0.0), Num(1.0)))
-
-
-IDENTITY = _pose(Num(0.0), Num(0.0))
-Q_SLOT, O_SLOT = Slot(0), Slot(1)
-
-
-def _tip():
-    return C("fk", Obj("arm2"), Q_SLOT, Str("tip"), IDENTITY)
-
-
-def graph() -> GraphNLP:
-    """Reach a target with the arm's tip (FK equality rows, no distance) while its link keeps
-    0.2 off a disc whose centre is a free variable held near a nominal place (distance row)."""
-    tip = _tip()
-    reach = factor("toy.reach", [Q, O], [
-        Constraint(Index(tip, Num(0)), "==", Num(1.2)),
-        Constraint(Index(tip, Num(1)), "==", Num(0.9)),
-        Constraint(C("sqnorm", C("sub", O_SLOT, Vec((Num(1.0), Num(-0.2), Num(0.0))))), "<=", Num(0.01)),
-    ], 0)
-    clear = factor("toy.clear", [Q, O], [
-        Constraint(C("sdist", C("link", Obj("arm2"), Str("l1")), tip, Obj("ob"),
-                     _pose(Index(O_SLOT, Num(0)), Index(O_SLOT, Num(1)))), ">=", Num(0.2)),
-    ], 0)
-    return GraphNLP([reach, clear])
+from nlp_toys import ARM_GEOM, arm_reach_graph
 
 
 def _hessian(curvature: bool, z, p, lam) -> np.ndarray:
-    s = FeasibilitySolver(GEOM, SolverOptions(restarts=0, assembly="MX", distance_curvature=curvature))
-    return s.assemble(graph()).solver.get_function("nlp_hess_l")(z, p, 1.0, lam).full()
+    s = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=0, assembly="MX", distance_curvature=curvature))
+    return s.assemble(arm_reach_graph()).solver.get_function("nlp_hess_l")(z, p, 1.0, lam).full()
 
 
 def test_without_curvature_the_hessian_is_the_lagrangian_without_distance_rows():
-    g = graph()
-    a = FeasibilitySolver(GEOM, SolverOptions(restarts=0, assembly="MX")).assemble(g)
+    g = arm_reach_graph()
+    a = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=0, assembly="MX")).assemble(g)
     # the rows of the distance factor in g's order (inequalities first, then equalities)
     clear_ref = next(r for r in g.factor_refs if g.factor(r).template == "toy.clear")
     real = next((i0, i1) for ref, i0, i1 in a.factor_rows if ref == clear_ref)
@@ -79,11 +44,11 @@ def test_without_curvature_the_hessian_is_the_lagrangian_without_distance_rows()
 
 @pytest.mark.parametrize("curvature", [True, False])
 def test_solves_feasible_either_way(curvature):
-    g = graph()
-    s = FeasibilitySolver(GEOM, SolverOptions(restarts=1, assembly="MX", distance_curvature=curvature))
+    g = arm_reach_graph()
+    s = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=1, assembly="MX", distance_curvature=curvature))
     r = s.solve(g, seed=1)
     assert r.feasible
-    worst, _ = max_violation(g.factor_instances, r.values, GEOM)
+    worst, _ = max_violation(g.factor_instances, r.values, ARM_GEOM)
     assert worst <= 1e-6
 
 

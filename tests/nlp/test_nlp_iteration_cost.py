@@ -13,7 +13,7 @@ from gnppdsl.nlp.evaluate import constraint_rows
 from gnppdsl.nlp.feasibility import DISTANCE_ROW_COST, FeasibilitySolver, SolverOptions
 from gnppdsl.nlp.graph import GraphNLP
 
-from test_nlp_distance_curvature import GEOM, graph
+from nlp_toys import ARM_GEOM as GEOM, arm_reach_graph as graph
 
 
 def _queries_distance(node) -> bool:
