@@ -119,6 +119,10 @@ class FeasibilityResult:
     # per factor, the largest |multiplier| of its elastic rows at the convergence point (see
     # `active`); empty when the point is not the solver's own last iterate
     activity: dict[FactorRef, float] = field(default_factory=dict)
+    # every multiplier at the convergence point, with the pull that produced it: what
+    # `gnppdsl.nlp.certificate` needs to decide a subgraph there without solving it (None when
+    # the multipliers are not known)
+    duals: "Duals | None" = None
 
     def violated(self, tolerance: float) -> list[FactorRef]:
         """Factors violated at the convergence point (input of the convergence heuristic)."""
@@ -217,6 +221,21 @@ class _Monitor(ca.Callback):
                 self.stalled = True
                 return [1]
         return [0]
+
+
+@dataclass(frozen=True)
+class Duals:
+    """The elastic NLP's multipliers at a convergence point x*, per factor and per variable (so
+    that any subgraph can take its share), and the pull (centre x0, weight rho) of the run that
+    ended there. Why keep them: at an infeasible x* the factors carrying no multiplier play no
+    part in the contradiction, and the optimality conditions of a subgraph without them can be
+    checked at x* from these numbers alone (`gnppdsl.nlp.certificate`)."""
+
+    rows: dict[FactorRef, np.ndarray]          # lam_g of each factor's rows, in the order of h
+    quats: dict[VarInstance, np.ndarray]       # lam_g of each variable's unit-quaternion rows
+    bounds: dict[VarInstance, np.ndarray]      # lam_x of each variable's entries
+    start: dict[VarInstance, np.ndarray]       # x0, the centre of the pull
+    rho: float                                 # the pull's weight
 
 
 @dataclass
@@ -679,7 +698,7 @@ class FeasibilitySolver:
 
     # -- solving ----------------------------------------------------------------------------
     def _run(self, a: _Assembled, x0: np.ndarray, rho: float
-             ) -> tuple[np.ndarray, float, int, str, np.ndarray | None]:
+             ) -> tuple[np.ndarray, float, int, str, tuple | None]:
         h0 = np.asarray(a.h_fun(x0, a.params)).reshape(-1)
         hi, he = h0[~a.kinds], h0[a.kinds]
         z0 = np.concatenate([x0, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
@@ -691,7 +710,9 @@ class FeasibilitySolver:
         st = a.solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
-        lam = np.asarray(sol["lam_g"]).reshape(-1)
+        # multipliers of the constraint rows and of x's bounds, with the pull of this run
+        lam = (np.asarray(sol["lam_g"]).reshape(-1), np.asarray(sol["lam_x"]).reshape(-1)[:a.n_x],
+               x0, rho)
         status = str(st.get("return_status", ""))
         if a.monitor is not None and a.monitor.stalled and a.monitor.best_z is not None:
             z = a.monitor.best_z          # the best point seen, not where ipopt wandered to
@@ -701,16 +722,36 @@ class FeasibilitySolver:
         return z[:a.n_x], float(np.sum(z[a.n_x:])), int(st.get("iter_count", 0)), status, lam
 
     @staticmethod
-    def _activity(a: _Assembled, lam: np.ndarray | None) -> dict[FactorRef, float]:
-        """Largest |multiplier| of each factor's elastic rows (g holds the inequality rows
-        first, then the equality rows, in the order of h)."""
-        if lam is None or not np.all(np.isfinite(lam)):
+    def _activity(a: _Assembled, lam: tuple | None) -> dict[FactorRef, float]:
+        """Largest |multiplier| of each factor's elastic rows."""
+        duals = FeasibilitySolver._duals(a, lam)
+        if duals is None:
             return {}
+        return {r: float(np.abs(m).max()) if m.size else 0.0 for r, m in duals.rows.items()}
+
+    @staticmethod
+    def _duals(a: _Assembled, lam: tuple | None) -> Duals | None:
+        """The multipliers of one ipopt run (`_run`) per factor and variable (g holds the
+        inequality rows first, then the equality rows, in the order of h, then the
+        unit-quaternion rows in the order of the variables)."""
+        if lam is None:
+            return None
+        lam_g, lam_x, x0, rho = lam
+        if not (np.all(np.isfinite(lam_g)) and np.all(np.isfinite(lam_x))):
+            return None
         g_row = np.empty(a.kinds.size, dtype=np.int64)
         g_row[~a.kinds] = np.arange(a.n_ineq)
         g_row[a.kinds] = a.n_ineq + np.arange(a.n_eq)
-        mags = np.abs(lam[g_row])
-        return {r: float(mags[i0:i1].max()) if i1 > i0 else 0.0 for r, i0, i1 in a.factor_rows}
+        lam_h = lam_g[g_row]
+        rows = {r: lam_h[i0:i1].copy() for r, i0, i1 in a.factor_rows}
+        quats, q = {}, a.n_ineq + a.n_eq
+        for v in a.variables:
+            k = len(_quat_slices(v))
+            quats[v] = lam_g[q:q + k].copy()
+            q += k
+        bounds = {v: lam_x[off:off + v.dim].copy() for v, off in zip(a.variables, a.offsets)}
+        start = {v: np.asarray(x0[off:off + v.dim], float).copy() for v, off in zip(a.variables, a.offsets)}
+        return Duals(rows, quats, bounds, start, float(rho))
 
     def _verdict(self, a: _Assembled, x: np.ndarray) -> tuple[dict, dict[FactorRef, float], float]:
         x = x.copy()
@@ -751,7 +792,7 @@ class FeasibilitySolver:
                 x, slack, it, status, lam = self._run(a, x, self.options.regularisation * 1e-4)
                 iters += it
                 values, per, worst = self._verdict(a, x)
-                if worst < best[2]:
+                if worst <= best[2]:
                     best, polished = (values, per, worst, slack, status, x, lam), True
             if best[2] <= tol:
                 break
@@ -764,13 +805,16 @@ class FeasibilitySolver:
             x, slack, it, status, lam = self._run(a, best[5], self.options.regularisation * 1e-4)
             iters += it
             values, per, worst = self._verdict(a, x)
-            if worst < best[2]:
+            # on a tie the polished point: the same violation, and its multipliers show the
+            # contradiction without the pull's forces (`gnppdsl.nlp.certificate`)
+            if worst <= best[2]:
                 best = (values, per, worst, slack, status, x, lam)
         values, per, worst, slack, status, _, lam = best
         dt = time.perf_counter() - t0
         self.solve_time += dt
         return FeasibilityResult(worst <= tol, values, per, worst, slack, dt, iters, status,
-                                 starts, self._activity(a, lam) if worst > tol else {})
+                                 starts, self._activity(a, lam) if worst > tol else {},
+                                 self._duals(a, lam) if worst > tol else None)
 
 
 def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarray] | None = None,

@@ -24,6 +24,7 @@ planner and to ipopt (max_wall_time), so the loop ends soon after it with status
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import time
 from contextlib import contextmanager
@@ -54,6 +55,9 @@ LOCAL_POLISH_BELOW = 1e-2
 # a subgraph starts from an earlier convergence point only when that violates it by less than
 # this (and less than the earlier solutions do): see `_Checker.solve`
 CLOSE_START = 1e-3
+# graphs whose ipopt iteration costs at most this (`FeasibilitySolver.iteration_cost`, in plain
+# rows) keep the polish of their one-start verdicts and certify their subgraphs: see `_Checker.certify`
+CERTIFY_MAX_COST = 500.0
 Progress = Callable[[str], None]
 
 
@@ -103,6 +107,11 @@ class SolveOptions:
                                      # verdict gets the second opinion of `recheck` when it ends the
                                      # time search, the restarts when it is the conflict (see
                                      # LAZY_MAX_FACTORS for why)
+    certify: bool = True             # gnpp: the lazy search decides a subgraph of a cheap graph
+                                     # that failed from one start at that graph's convergence
+                                     # point when it certifies it (no NLP), and confirms it with
+                                     # the graph's restarts (`_Checker.certify`); planar p5
+                                     # 5 -> 3 NLPs, p4 10 -> 6
 
     @staticmethod
     def from_settings(settings: Any = None, **overrides: Any) -> "SolveOptions":
@@ -387,6 +396,11 @@ class _Checker:
         self.unconfirmed: set = set()     # signatures of infeasible verdicts from one start
         self.derived: dict = {}           # graph -> its mode-switch graph, whose infeasible
                                           # verdict it took as its own (see `overturned`)
+        self.parents: list[tuple] = []    # (factor refs, graph, result) of the newest cheap
+                                          # infeasible solves: what `certify` decides subgraphs at
+        self.parent_of: dict = {}         # signature -> the graph at whose convergence point it was
+                                          # decided (certified, or its only violated component)
+        self.components: set = set()      # ... of those, the components (`infer_components`)
 
     def solve(self, g: Any) -> Any:
         run = self.run
@@ -401,6 +415,10 @@ class _Checker:
             self.values.update(known.values)      # a solution like any other: warm starts
             return known
         trajs = [v for v in g.variables if is_trajectory(v)]
+        if self.lazy and not trajs and run.options.certify:
+            certified = self.certify(g)
+            if certified is not None:
+                return certified
         warm = self.warm_start(g)
         if self.closest_point is not None and not trajs:
             # an earlier convergence point that nearly satisfies g (CLOSE_START), and better
@@ -423,8 +441,7 @@ class _Checker:
                 # whole multi-step component gets a second opinion), so it never becomes a
                 # conflict by itself; random restarts of a 10-step Lab graph cost 100+ s.
                 # The final polish of a point far from feasible is skipped there too (`local_solve`).
-                local = {"restarts": 0, "final_polish_below": LOCAL_POLISH_BELOW} \
-                    if key == self.graph.signature() else {}
+                local = {"restarts": 0, **self.far_polish(modes)} if key == self.graph.signature() else {}
                 # never lazy: g takes this verdict as its own, and g's key is not marked
                 # unconfirmed (`confirm` would pass a one-start verdict on)
                 with overridden(self.solver.options, **local), overridden(self, lazy=False, lazy_large=False):
@@ -469,7 +486,7 @@ class _Checker:
             lazy = self.lazy if g.n_factors <= LAZY_MAX_FACTORS else self.lazy_large
             # a one-start verdict: no restarts, and the polish of a point far from feasible
             # left to `confirm` too (as for the plan's own graph, `local_solve`)
-            one_start = {"restarts": 0, "final_polish_below": LOCAL_POLISH_BELOW}
+            one_start = {"restarts": 0, **self.far_polish(g)}
             with overridden(opts, **(one_start if lazy else {})):
                 r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
             run.nlp_calls += 1
@@ -486,7 +503,48 @@ class _Checker:
             # subgraph of it (e.g. everything but the collision factors)
             self.points = [r.values, *self.points][:self.max_points]
             self.infer_components(g, r)
+            if r.duals is not None and run.options.certify and self.cheap(g):
+                self.parents = [(frozenset(g.factor_refs), g, r), *self.parents][:self.max_points]
         return r
+
+    def cheap(self, g: Any) -> bool:
+        """Does an ipopt iteration on g cost at most CERTIFY_MAX_COST plain rows? (Planar plans:
+        44-119; Lab mode-switch graphs: 2300-13000, their distance rows weighted.)"""
+        return self.solver.iteration_cost(g) <= CERTIFY_MAX_COST
+
+    def far_polish(self, g: Any) -> dict:
+        """Solver options of a one-start verdict on g: the final polish of a point far from
+        feasible is left to `confirm` (LOCAL_POLISH_BELOW), unless g is cheap. Why keep it
+        there: the polish (the pull 1e-4 weaker) leaves multipliers only on the rows of the
+        contradiction, which is what lets `certify` decide g's subgraphs without solving them
+        (planar p5: ~1e-8 outside the support after it, ~4e-3 before)."""
+        return {} if self.run.options.certify and self.cheap(g) else {"final_polish_below": LOCAL_POLISH_BELOW}
+
+    def certify(self, g: Any) -> Any:
+        """An infeasible verdict on g without an NLP: g is a proper subgraph of a cheap graph
+        whose one-start solve ended infeasible, and that convergence point is a strict local
+        minimum of g's own elastic NLP with the same violation (`certify_infeasible`). The
+        verdict is one-start evidence like the lazy search's (unconfirmed): if g becomes the
+        conflict, `confirm` gives it the restarts, as the graph's restarts when they certify g
+        too. Why: the convergence heuristic's support (Sec. VI-C) is usually exactly such a
+        subgraph, and solving it repeated what the graph's solve had shown (planar p5, per
+        failed plan: the plan's NLP and the support's NLP, now the plan's alone)."""
+        from gnppdsl.nlp.certificate import certify_infeasible
+
+        refs = frozenset(g.factor_refs)
+        for parent_refs, parent, point in self.parents:
+            if not refs < parent_refs:
+                continue
+            r = certify_infeasible(self.solver, g, point)
+            if r is None:
+                continue
+            key = g.signature()
+            self.results[key] = r
+            self.parent_of[key] = parent
+            self.unconfirmed.add(key)
+            self.run.stats.certified_verdicts += 1
+            return r
+        return None
 
     def warm_start(self, g: Any) -> dict:
         """The start of g's NLP from this plan's earlier solutions (`self.values`), made
@@ -573,7 +631,7 @@ class _Checker:
         # keyframes stall at 1.6e-3 and the polish solves them). The small levels solved
         # before it keep their polish: it is cheap, and their convergence point shapes the
         # conflict search (Lab 4: two more NLPs without it).
-        polish = {"final_polish_below": LOCAL_POLISH_BELOW} if g.signature() == self.graph.signature() else {}
+        polish = self.far_polish(g) if g.signature() == self.graph.signature() else {}
         opts.time_limit = max(0.05, run.remaining())
         with overridden(opts, restarts=0, **polish):
             r = self.solver.solve(g, warm_start=warm, seed=run.options.seed)
@@ -756,6 +814,15 @@ class _Checker:
             return True
         self.unconfirmed.discard(key)
         run = self.run
+        parent = self.parent_of.get(key)
+        if parent is not None:
+            verdict = self.confirm_by_parent(g, parent)
+            if verdict is not None:
+                return verdict
+        if getattr(self.results.get(key), "starts", 1) == 0:
+            # no ipopt run behind the verdict (certified, or inferred at a graph's x*): these
+            # restarts are g's first solve, an NLP
+            run.nlp_calls += 1
         opts = self.solver.options
         opts.time_limit = max(0.05, run.remaining())
         r = self.solver.solve(g, warm_start={v: self.values[v] for v in g.variables if v in self.values},
@@ -764,20 +831,70 @@ class _Checker:
                                                  or "walltime" in str(r.status).lower()):
             raise _TimeUp()
         if r is None or not r.feasible:
-            if self.use_db and run.db is not None:          # skipped while unconfirmed
-                try:
-                    run.db.add(g, False, names_of(run.task, to_partial_states(g)))
-                except ValueError:
-                    run.db.add(g, False, None)
+            self.remember_infeasible(g)
             return True
         self.results[key] = r
         self.values.update(r.values)
         return False
 
+    def confirm_by_parent(self, g: Any, parent: Any) -> bool | None:
+        """`confirm` for a g decided at the convergence point of a cheap `parent` (`certify`,
+        `infer_components`): the parent's random restarts, each polished, are g's restarts
+        when each decides g at its own convergence point: a certified subgraph is certified
+        there again (each point a strict local minimum of g's NLP that violates it), a
+        component is violated there (components share no variables: the parent's NLP is the
+        sum of theirs, its local minima theirs). Evidence from as many starts as g's own solve.
+        True: confirmed (the parent failed from every start too); False: the parent, so g, is
+        feasible (now in the memo); None: a restart did not decide g, the parent is not cheap
+        or had its restarts already (only its best point is known): g needs its own. Why the
+        parent's and not g's: the parent's NLP is cheap and already counted, so a failed plan
+        costs one NLP, as in One-way, with a conflict smaller than the plan."""
+        pkey = parent.signature()
+        if pkey not in self.unconfirmed or not self.cheap(parent):
+            return None
+        from gnppdsl.nlp.certificate import certify_infeasible
+
+        component = g.signature() in self.components
+        tol = self.run.options.tolerance
+
+        run, opts = self.run, self.solver.options
+        warm = {v: self.values[v] for v in parent.variables if v in self.values}
+        for k in range(1, max(0, opts.restarts) + 1):
+            opts.time_limit = max(0.05, run.remaining())
+            with overridden(opts, restarts=k, final_polish_below=math.inf):
+                r = self.solver.solve(parent, warm_start=warm, seed=run.options.seed, first_attempt=k)
+            if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
+                raise _TimeUp()
+            if r.feasible:
+                self.unconfirmed.discard(pkey)
+                self.results[pkey] = r
+                self.values.update(r.values)
+                return False
+            if component:
+                if not max(r.violations.get(ref, np.inf) for ref in g.factor_refs) > tol:
+                    return None
+            elif certify_infeasible(self.solver, g, r) is None:
+                return None
+        self.unconfirmed.discard(pkey)    # the parent failed from every start as well
+        self.remember_infeasible(g)
+        return True
+
+    def remember_infeasible(self, g: Any) -> None:
+        """A confirmed infeasible g into the database (skipped while unconfirmed)."""
+        run = self.run
+        if self.use_db and run.db is not None:
+            try:
+                run.db.add(g, False, names_of(run.task, to_partial_states(g)))
+            except ValueError:
+                run.db.add(g, False, None)
+
     def forget_unconfirmed(self) -> None:
-        """Drop every one-start infeasible verdict (after one of them proved wrong)."""
+        """Drop every one-start infeasible verdict (after one of them proved wrong), and the
+        certificates drawn from them."""
         for key in self.unconfirmed:
             self.results.pop(key, None)
+            self.parent_of.pop(key, None)
+        self.parents = [p for p in self.parents if p[1].signature() not in self.unconfirmed]
         self.unconfirmed.clear()
 
     def recheck(self, g: Any) -> Any:
@@ -829,6 +946,8 @@ class _Checker:
             c, per, vals, worst = bad[0]
             if g.signature() in self.unconfirmed:
                 self.unconfirmed.add(c.signature())
+                self.parent_of.setdefault(c.signature(), g)
+                self.components.add(c.signature())
             if c.signature() not in self.results:
                 activity = getattr(r, "activity", {})
                 self.results[c.signature()] = FeasibilityResult(

@@ -90,6 +90,7 @@ class Stats:
     rechecks_feasible: int = 0        # failed graphs solved on a second try from their slices' solutions
     screened_levels: int = 0          # relaxation levels skipped: nearly hold at the full graph's x*
     inferred_verdicts: int = 0        # infeasible components located at an infeasible graph's x*
+    certified_verdicts: int = 0       # infeasible subgraphs certified at a graph's x* (no NLP)
     lazy_retries: int = 0             # Alg. 1 searches repeated with restarts (a one-start verdict was wrong)
     kernels_native: int = 0           # derivative kernels run as compiled C (setting jit)
     kernels_compiled: int = 0         # ... of which compiled by this solve (the rest: from the cache)

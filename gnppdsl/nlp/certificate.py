@@ -1,0 +1,133 @@
+"""Infeasibility certificates: a subgraph decided at a graph's convergence point, without a solve.
+
+Why: when the elastic NLP of a graph P ends infeasible at x*, its multipliers say which factors
+take part in the contradiction (`FeasibilityResult.active`): the support, the convergence
+heuristic's first candidate (Sec. VI-C). The candidate g is a subgraph of P, so its own
+elastic NLP has the same rows, the same slacks and the same pull at x*; only the rows of P
+outside g are gone. If their multipliers were zero there, (x*, the multipliers of g's rows) is
+a KKT point of g's NLP, and if that NLP curves upwards in every direction its active rows
+allow (second-order condition), x* is a strict local minimum of it with the same violation: the
+verdict a solve of g from x* would return at once. Without this, each conflict cost its plan's
+NLP plus one NLP on the support that only repeated what the plan's NLP had shown (planar p5:
+both direct plans, 2 + 2 NLPs before the solution).
+
+What is checked, for the elastic NLP of g at z* = (x*, s = the rows' violations) with g's
+share of P's multipliers:
+- stationarity in x: |grad f + J' lam_g + lam_x| <= RESIDUAL (P's multipliers of the rows
+  outside g, which touch g's variables, must have been ~0: after the polish of an infeasible
+  verdict, with the pull 1e-4 weaker, they are ~1e-8 on p5; before it, the pull's forces
+  crossing g's boundary are ~4e-3 and nothing is certified);
+- the slacks: a violated row has multiplier 1 (its weight), a satisfied one at most 1;
+- second order: the Hessian of g's Lagrangian reduced to the null space of its strongly active
+  rows and bounds is positive definite (weakly active rows are left out of the active set, a
+  larger space: conservative). A saddle is refused: a factor pinned by a row of P with a zero
+  multiplier (x = 0 from `x == 0`, and `x^2 >= 1` violated there) leaves g = {x^2 >= 1} at a
+  stationary point that is a maximum of its violation, where g is feasible;
+- the Newton step of the reduced quadratic model from the residual left is short (STEP) and
+  changes the objective by less than DECREASE of the slack: a KKT point of g lies right there,
+  with the same violation.
+Local evidence, as every verdict of the local solver is: the loop confirms a certified
+conflict with the random restarts it would give a solved one (`gnppdsl.solve.loop`).
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from gnppdsl.nlp.feasibility import FeasibilityResult, FeasibilitySolver
+from gnppdsl.nlp.graph import GraphNLP
+
+RESIDUAL = 1e-6        # max |stationarity residual| in x and on the slacks (measured ~5e-9 on p5)
+ACTIVE = 1e-6          # |multiplier| above which a row or bound counts as strongly active
+STEP = 5e-2            # max |Newton step| of the reduced model (its region of trust)
+DECREASE = 1e-3        # max predicted change of the objective, as a share of the slacks' sum
+MAX_DIM = 1500         # dense reduced Hessian: larger NLPs are not certified (solved instead)
+
+
+def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: FeasibilityResult
+                       ) -> FeasibilityResult | None:
+    """The infeasible verdict on `graph` at the convergence point of `point` (the infeasible
+    solve of a graph containing it), or None when that point does not certify it (see the
+    module docstring). The verdict has `point`'s values, violations and multipliers restricted
+    to `graph`, no iterations and no ipopt run."""
+    duals = point.duals
+    if point.feasible or duals is None or graph.n_factors == 0:
+        return None
+    refs = list(graph.factor_refs)
+    if any(r not in duals.rows or r not in point.violations for r in refs) \
+            or any(v not in point.values or v not in duals.bounds for v in graph.variables):
+        return None
+    tol = solver.options.tolerance
+    per = {r: point.violations[r] for r in refs}
+    worst = max(per.values())
+    if not worst > tol:
+        return None                       # nothing of the contradiction is in graph
+    a = solver.assemble(graph)
+    nz = a.lbx.size
+    if nz > MAX_DIM:
+        return None
+    stack = lambda d: np.concatenate([np.asarray(d[v], float).reshape(-1) for v in a.variables]) \
+        if a.variables else np.zeros(0)
+    x, x0, lam_x = stack(point.values), stack(duals.start), stack(duals.bounds)
+    h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
+    hi, he = h[~a.kinds], h[a.kinds]
+    z = np.concatenate([x, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
+    lam_h = np.zeros(a.kinds.size)
+    for r, i0, i1 in a.factor_rows:
+        if duals.rows[r].size != i1 - i0:
+            return None
+        lam_h[i0:i1] = duals.rows[r]
+    lam_g = np.concatenate([lam_h[~a.kinds], lam_h[a.kinds],
+                            *(np.asarray(duals.quats.get(v, ()), float) for v in a.variables)])
+    if lam_g.size != a.lbg.size:
+        return None
+    p = np.concatenate([x0, a.params, [duals.rho]])
+    try:
+        grad_f = np.asarray(a.solver.get_function("nlp_grad_f")(z, p)[1]).reshape(-1)
+        jac = ca.DM(a.solver.get_function("nlp_jac_g")(z, p)[1]).full()
+        hess = ca.DM(a.solver.get_function("nlp_hess_l")(z, p, 1.0, lam_g)).full()
+    except Exception:                     # derivatives not available as functions: solve instead
+        return None
+    hess = hess + hess.T - np.diag(np.diag(hess))          # ipopt's upper triangle
+    stat = grad_f + jac.T @ lam_g
+    n = a.n_x
+    r_x = stat[:n] + lam_x
+    r_s = stat[n:]                        # = -(the slacks' bound multipliers)
+    s = z[n:]
+    zero = s <= 1e-2 * tol
+    if not (np.all(np.isfinite(stat)) and np.abs(r_x).max(initial=0.0) <= RESIDUAL
+            and np.abs(r_s[~zero]).max(initial=0.0) <= RESIDUAL and r_s[zero].min(initial=0.0) >= -RESIDUAL):
+        return None
+    # strongly active set: every equality row (elastic rows and unit quaternions), the
+    # inequality rows with a multiplier, the bounds that hold a multiplier
+    n_in = a.n_ineq
+    rows = [i for i in range(lam_g.size) if i >= n_in or lam_g[i] > ACTIVE]
+    lam_z = np.concatenate([lam_x, -r_s])
+    at_bound = (z <= a.lbx + 1e-9) | (z >= a.ubx - 1e-9)
+    fixed = np.flatnonzero(at_bound & (np.abs(lam_z) > ACTIVE))
+    active = np.vstack([jac[rows], np.eye(nz)[fixed]]) if rows or fixed.size else np.zeros((0, nz))
+    if active.shape[0]:
+        _, sv, vt = np.linalg.svd(active)
+        rank = int(np.sum(sv > 1e-9 * max(1.0, sv.max(initial=0.0))))
+        null = vt[rank:].T
+    else:
+        null = np.eye(nz)
+    residual = np.concatenate([r_x, np.zeros(nz - n)])
+    if null.shape[1]:
+        reduced = null.T @ hess @ null
+        eig = np.linalg.eigvalsh(0.5 * (reduced + reduced.T))
+        if not eig.min() > 1e-3 * duals.rho:
+            return None                   # a saddle or a flat direction: no strict minimum
+        g = null.T @ residual
+        step = np.linalg.solve(reduced, g)
+        if np.abs(null @ step).max(initial=0.0) > STEP or 0.5 * abs(g @ step) > DECREASE * s.sum():
+            return None
+    activity = {r: float(np.abs(duals.rows[r]).max()) if duals.rows[r].size else 0.0 for r in refs}
+    values = {v: point.values[v] for v in graph.variables}
+    restricted = type(duals)({r: duals.rows[r] for r in refs},
+                             {v: duals.quats[v] for v in graph.variables if v in duals.quats},
+                             {v: duals.bounds[v] for v in graph.variables},
+                             {v: duals.start[v] for v in graph.variables}, duals.rho)
+    return FeasibilityResult(False, values, per, worst, float(s.sum()), 0.0, 0,
+                             "certified at a convergence point of a graph containing it", 0,
+                             activity, restricted)
