@@ -257,6 +257,8 @@ class _Assembled:
     monitor: _Monitor | None = None
     row_factors: tuple = ()            # the FactorInstance of each factor_rows entry (kept alive:
                                        # the cache key holds their ids)
+    spec: tuple = ()                   # (name, plugin, nlp, options) of `solver`: see `_polisher`
+    polisher: ca.Function | None = None
 
 
 def _bounds(v: VarInstance, bound, default: float) -> np.ndarray:
@@ -465,7 +467,9 @@ class FeasibilitySolver:
         fac = dict((r, f) for r, f in inst)
         a = _Assembled(solver, h_fun, variables, offsets, n, kinds_arr, factor_rows, params,
                        ineq.size, eq.size, lbz, ubz, lbg, ubg, monitor,
-                       tuple(fac[r] for r, _, _ in factor_rows))
+                       tuple(fac[r] for r, _, _ in factor_rows),
+                       (f"elastic_{self._built}", self.options.plugin,
+                        {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P, rho)}, opts))
         self._nlps[key] = a
         while len(self._nlps) > self.options.cache_size:
             self._nlps.popitem(last=False)
@@ -697,22 +701,45 @@ class FeasibilitySolver:
         return _moved(v, val, rng, self.options.restart_noise)
 
     # -- solving ----------------------------------------------------------------------------
-    def _run(self, a: _Assembled, x0: np.ndarray, rho: float
+    def _polisher(self, a: _Assembled) -> ca.Function | None:
+        """`a`'s NLP as an ipopt solver that starts from given multipliers (warm start of the
+        interior point: small barrier, no push off the bounds), built on first use. Why: the
+        polish re-solves a convergence point with a weaker pull; from scratch ipopt climbs back
+        from its initial barrier (10-18 iterations on planar p5's plans, more than the solve
+        itself), warm-started 4-10."""
+        if a.polisher is None and a.spec and a.spec[1] == "ipopt":
+            name, plugin, nlp, opts = a.spec
+            warm = {"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-6}
+            warm.update({f"ipopt.warm_start_{k}": 1e-9 for k in ("bound_push", "mult_bound_push",
+                                                                   "slack_bound_push", "bound_frac",
+                                                                   "slack_bound_frac")})
+            a.polisher = ca.nlpsol(f"{name}_polish", plugin, nlp, {**opts, **warm})
+        return a.polisher
+
+    def _run(self, a: _Assembled, x0: np.ndarray, rho: float, warm: tuple | None = None
              ) -> tuple[np.ndarray, float, int, str, tuple | None]:
-        h0 = np.asarray(a.h_fun(x0, a.params)).reshape(-1)
-        hi, he = h0[~a.kinds], h0[a.kinds]
-        z0 = np.concatenate([x0, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
-        z0 = np.nan_to_num(z0, nan=1.0, posinf=1e3, neginf=-1e3)
+        """One ipopt run from x0 with the pull rho towards it; `warm` = the multipliers tuple
+        of an earlier run from whose point x0 is (a polish): started from its z and
+        multipliers (`_polisher`)."""
+        solver = self._polisher(a) if warm is not None else None
+        p = np.concatenate([x0, a.params, [rho]])
         if a.monitor is not None:
             a.monitor.reset(0.1 * self.options.tolerance, self.options.stall_iterations, self.deadline)
-        sol = a.solver(x0=z0, p=np.concatenate([x0, a.params, [rho]]), lbx=a.lbx, ubx=a.ubx,
-                       lbg=a.lbg, ubg=a.ubg)
-        st = a.solver.stats()
+        if solver is not None:
+            lam_g0, lam_x0, _, _, z0 = warm
+            sol = solver(x0=z0, lam_x0=lam_x0, lam_g0=lam_g0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
+        else:
+            solver = a.solver
+            h0 = np.asarray(a.h_fun(x0, a.params)).reshape(-1)
+            hi, he = h0[~a.kinds], h0[a.kinds]
+            z0 = np.concatenate([x0, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
+            z0 = np.nan_to_num(z0, nan=1.0, posinf=1e3, neginf=-1e3)
+            sol = solver(x0=z0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
+        st = solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
         # multipliers of the constraint rows and of x's bounds, with the pull of this run
-        lam = (np.asarray(sol["lam_g"]).reshape(-1), np.asarray(sol["lam_x"]).reshape(-1)[:a.n_x],
-               x0, rho)
+        lam = (np.asarray(sol["lam_g"]).reshape(-1), np.asarray(sol["lam_x"]).reshape(-1), x0, rho, z)
         status = str(st.get("return_status", ""))
         if a.monitor is not None and a.monitor.stalled and a.monitor.best_z is not None:
             z = a.monitor.best_z          # the best point seen, not where ipopt wandered to
@@ -736,7 +763,8 @@ class FeasibilitySolver:
         unit-quaternion rows in the order of the variables)."""
         if lam is None:
             return None
-        lam_g, lam_x, x0, rho = lam
+        lam_g, lam_x, x0, rho, _ = lam
+        lam_x = lam_x[:a.n_x]
         if not (np.all(np.isfinite(lam_g)) and np.all(np.isfinite(lam_x))):
             return None
         g_row = np.empty(a.kinds.size, dtype=np.int64)
@@ -789,7 +817,7 @@ class FeasibilitySolver:
             if best is None or worst < best[2]:
                 best, polished = (values, per, worst, slack, status, x, lam), False
             if tol < worst <= self.options.polish_below and self.options.polish:
-                x, slack, it, status, lam = self._run(a, x, self.options.regularisation * 1e-4)
+                x, slack, it, status, lam = self._run(a, x, self.options.regularisation * 1e-4, lam)
                 iters += it
                 values, per, worst = self._verdict(a, x)
                 if worst <= best[2]:
@@ -802,7 +830,7 @@ class FeasibilitySolver:
             # The pull towards the start can outweigh the L1 penalty of a badly scaled row
             # (gradient below rho): re-solve the best point with a much weaker pull before
             # believing an infeasible verdict.
-            x, slack, it, status, lam = self._run(a, best[5], self.options.regularisation * 1e-4)
+            x, slack, it, status, lam = self._run(a, best[5], self.options.regularisation * 1e-4, best[6])
             iters += it
             values, per, worst = self._verdict(a, x)
             # on a tie the polished point: the same violation, and its multipliers show the
