@@ -75,8 +75,18 @@ class GraphNLP:
         return g
 
     def _derive(self, nodes: Iterable, suffix: str) -> "GraphNLP":
-        return GraphNLP(self.factors, self.graph.subgraph(nodes).copy(), f"{self.name}{suffix}",
-                        self.initial_guess)
+        """The subgraph induced by `nodes`, as its own graph (what networkx's
+        `subgraph(nodes).copy()` gives: attribute dicts copied, values shared). Built directly,
+        each edge from its factor end (the graph is bipartite): the filtered views of
+        `subgraph().copy()` cost 0.4 ms per derivation on planar plans, a quarter of the
+        loop's time outside ipopt on p5."""
+        keep = {n for n in nodes if n in self.graph}
+        g = nx.Graph()
+        node_data, adj = self.graph.nodes, self.graph.adj
+        g.add_nodes_from((n, node_data[n]) for n in keep)
+        g.add_edges_from((f, v, d) for f in keep if isinstance(f, FactorRef)
+                         for v, d in adj[f].items() if v in keep)
+        return GraphNLP(self.factors, g, f"{self.name}{suffix}", self.initial_guess)
 
     # -- views ----------------------------------------------------------------------------
     @property
