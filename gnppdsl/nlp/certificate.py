@@ -44,42 +44,65 @@ DECREASE = 1e-3        # max predicted change of the objective, as a share of th
 MAX_DIM = 1500         # dense reduced Hessian: larger NLPs are not certified (solved instead)
 
 
-def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: FeasibilityResult
-                       ) -> FeasibilityResult | None:
-    """The infeasible verdict on `graph` at the convergence point of `point` (the infeasible
-    solve of a graph containing it), or None when that point does not certify it (see the
-    module docstring). The verdict has `point`'s values, violations and multipliers restricted
-    to `graph`, no iterations and no ipopt run."""
+def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: FeasibilityResult,
+                       within: GraphNLP) -> FeasibilityResult | None:
+    """The infeasible verdict on `graph` at the convergence point of `point`, the infeasible
+    solve of `within` (a graph containing `graph`), or None when that point does not certify
+    it (see the module docstring). Evaluated with `within`'s assembled NLP (cached by the
+    solver): g's NLP is its restriction to g's coordinates (variables, slacks of g's rows)
+    with the multipliers of the other rows set to zero, so g itself is never assembled. The
+    verdict has `point`'s values, violations and multipliers restricted to `graph`, no
+    iterations and no ipopt run."""
     duals = point.duals
     if point.feasible or duals is None or graph.n_factors == 0:
         return None
     refs = list(graph.factor_refs)
+    mine = set(refs)
     if any(r not in duals.rows or r not in point.violations for r in refs) \
-            or any(v not in point.values or v not in duals.bounds for v in graph.variables):
+            or any(v not in point.values or v not in duals.bounds for v in within.variables):
         return None
     tol = solver.options.tolerance
     per = {r: point.violations[r] for r in refs}
     worst = max(per.values())
     if not worst > tol:
         return None                       # nothing of the contradiction is in graph
-    a = solver.assemble(graph)
-    nz = a.lbx.size
-    if nz > MAX_DIM:
-        return None
+    a = solver.assemble(within)
+    n, n_in, n_eq = a.n_x, a.n_ineq, a.n_eq
     stack = lambda d: np.concatenate([np.asarray(d[v], float).reshape(-1) for v in a.variables]) \
         if a.variables else np.zeros(0)
     x, x0, lam_x = stack(point.values), stack(duals.start), stack(duals.bounds)
     h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
     hi, he = h[~a.kinds], h[a.kinds]
     z = np.concatenate([x, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
-    lam_h = np.zeros(a.kinds.size)
+    # g's coordinates and rows inside within's NLP
+    g_row = np.empty(a.kinds.size, dtype=np.int64)          # h row -> its g row
+    g_row[~a.kinds] = np.arange(n_in)
+    g_row[a.kinds] = n_in + np.arange(n_eq)
+    lam_g = np.zeros(a.lbg.size)
+    rows, slacks = [], []
     for r, i0, i1 in a.factor_rows:
+        if r not in mine:
+            continue
         if duals.rows[r].size != i1 - i0:
             return None
-        lam_h[i0:i1] = duals.rows[r]
-    lam_g = np.concatenate([lam_h[~a.kinds], lam_h[a.kinds],
-                            *(np.asarray(duals.quats.get(v, ()), float) for v in a.variables)])
-    if lam_g.size != a.lbg.size:
+        lam_g[g_row[i0:i1]] = duals.rows[r]
+        rows += g_row[i0:i1].tolist()
+        for i in range(i0, i1):
+            j = g_row[i]
+            slacks += [n + j] if j < n_in else [n + j, n + j + n_eq]
+    cols, q = [], n_in + n_eq
+    own = set(graph.variables)
+    for v, off in zip(a.variables, a.offsets):
+        k = len(duals.quats.get(v, ()))
+        if v in own:
+            cols += range(off, off + v.dim)
+            lam_g[q:q + k] = duals.quats[v]
+            rows += range(q, q + k)
+        q += k
+    if q != a.lbg.size:
+        return None
+    coords = np.array(cols + sorted(slacks), dtype=np.int64)
+    if coords.size > MAX_DIM:
         return None
     p = np.concatenate([x0, a.params, [duals.rho]])
     try:
@@ -88,39 +111,42 @@ def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: Feasib
         hess = ca.DM(a.solver.get_function("nlp_hess_l")(z, p, 1.0, lam_g)).full()
     except Exception:                     # derivatives not available as functions: solve instead
         return None
-    hess = hess + hess.T - np.diag(np.diag(hess))          # ipopt's upper triangle
     stat = grad_f + jac.T @ lam_g
-    n = a.n_x
-    r_x = stat[:n] + lam_x
-    r_s = stat[n:]                        # = -(the slacks' bound multipliers)
-    s = z[n:]
+    lam_z = np.concatenate([lam_x, np.zeros(z.size - n)])
+    n_x = len(cols)
+    r_x = stat[cols] + lam_z[cols]
+    r_s = stat[coords[n_x:]]              # = -(the slacks' bound multipliers)
+    s = z[coords[n_x:]]
     zero = s <= 1e-2 * tol
-    if not (np.all(np.isfinite(stat)) and np.abs(r_x).max(initial=0.0) <= RESIDUAL
+    if not (np.all(np.isfinite(stat[coords])) and np.abs(r_x).max(initial=0.0) <= RESIDUAL
             and np.abs(r_s[~zero]).max(initial=0.0) <= RESIDUAL and r_s[zero].min(initial=0.0) >= -RESIDUAL):
         return None
-    # strongly active set: every equality row (elastic rows and unit quaternions), the
-    # inequality rows with a multiplier, the bounds that hold a multiplier
-    n_in = a.n_ineq
-    rows = [i for i in range(lam_g.size) if i >= n_in or lam_g[i] > ACTIVE]
-    lam_z = np.concatenate([lam_x, -r_s])
-    at_bound = (z <= a.lbx + 1e-9) | (z >= a.ubx - 1e-9)
-    fixed = np.flatnonzero(at_bound & (np.abs(lam_z) > ACTIVE))
-    active = np.vstack([jac[rows], np.eye(nz)[fixed]]) if rows or fixed.size else np.zeros((0, nz))
+    # strongly active set (in g's coordinates): every equality row (elastic rows and unit
+    # quaternions), the inequality rows with a multiplier, the bounds that hold a multiplier
+    active_rows = [i for i in rows if i >= n_in or lam_g[i] > ACTIVE]
+    lam_z[coords[n_x:]] = -r_s
+    zc, lam_c = z[coords], lam_z[coords]
+    at_bound = (zc <= a.lbx[coords] + 1e-9) | (zc >= a.ubx[coords] - 1e-9)
+    fixed = np.flatnonzero(at_bound & (np.abs(lam_c) > ACTIVE))
+    nz = coords.size
+    active = np.vstack([jac[np.ix_(active_rows, coords)], np.eye(nz)[fixed]]) \
+        if active_rows or fixed.size else np.zeros((0, nz))
     if active.shape[0]:
         _, sv, vt = np.linalg.svd(active)
         rank = int(np.sum(sv > 1e-9 * max(1.0, sv.max(initial=0.0))))
         null = vt[rank:].T
     else:
         null = np.eye(nz)
-    residual = np.concatenate([r_x, np.zeros(nz - n)])
+    hess = hess + hess.T - np.diag(np.diag(hess))          # ipopt's upper triangle
+    residual = np.concatenate([r_x, np.zeros(nz - n_x)])
     if null.shape[1]:
-        reduced = null.T @ hess @ null
+        reduced = null.T @ hess[np.ix_(coords, coords)] @ null
         eig = np.linalg.eigvalsh(0.5 * (reduced + reduced.T))
         if not eig.min() > 1e-3 * duals.rho:
             return None                   # a saddle or a flat direction: no strict minimum
-        g = null.T @ residual
-        step = np.linalg.solve(reduced, g)
-        if np.abs(null @ step).max(initial=0.0) > STEP or 0.5 * abs(g @ step) > DECREASE * s.sum():
+        gr = null.T @ residual
+        step = np.linalg.solve(reduced, gr)
+        if np.abs(null @ step).max(initial=0.0) > STEP or 0.5 * abs(gr @ step) > DECREASE * s.sum():
             return None
     activity = {r: float(np.abs(duals.rows[r]).max()) if duals.rows[r].size else 0.0 for r in refs}
     values = {v: point.values[v] for v in graph.variables}

@@ -535,7 +535,7 @@ class _Checker:
         for parent_refs, parent, point in self.parents:
             if not refs < parent_refs:
                 continue
-            r = certify_infeasible(self.solver, g, point)
+            r = certify_infeasible(self.solver, g, point, parent)
             if r is None:
                 continue
             key = g.signature()
@@ -873,7 +873,7 @@ class _Checker:
             if component:
                 if not max(r.violations.get(ref, np.inf) for ref in g.factor_refs) > tol:
                     return None
-            elif certify_infeasible(self.solver, g, r) is None:
+            elif certify_infeasible(self.solver, g, r, parent) is None:
                 return None
         self.unconfirmed.discard(pkey)    # the parent failed from every start as well
         self.remember_infeasible(g)

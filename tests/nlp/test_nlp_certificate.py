@@ -50,7 +50,7 @@ def test_the_support_is_certified_and_every_feasible_part_of_it_refused(p5, plan
     assert not r.feasible and r.duals is not None
     support = r.active(TOL)
     m = g.subgraph(factors=support)
-    cert = certify_infeasible(solver, m, r)
+    cert = certify_infeasible(solver, m, r, g)
     assert cert is not None and not cert.feasible and cert.iterations == 0
     assert set(cert.violated(TOL)) == set(r.violated(TOL))
     assert cert.max_violation == pytest.approx(r.max_violation)
@@ -62,7 +62,7 @@ def test_the_support_is_certified_and_every_feasible_part_of_it_refused(p5, plan
         sol = _solver(p5, restarts=4).solve(rest)
         assert sol.feasible
         assert max_violation(rest.factor_instances, sol.values, p5.geometry)[0] <= TOL
-        assert certify_infeasible(solver, rest, r) is None, g.factor(ref).label
+        assert certify_infeasible(solver, rest, r, g) is None, g.factor(ref).label
 
 
 @pytest.mark.parametrize("plan", PLANS)
@@ -73,7 +73,7 @@ def test_without_the_polish_the_pull_crossing_the_support_certifies_nothing(p5, 
     assert not r.feasible and r.duals is not None and r.duals.rho == solver.options.regularisation
     outside = [ref for ref in g.factor_refs if ref not in r.active(TOL)]
     assert max(np.abs(r.duals.rows[ref]).max() for ref in outside) > 1e-3
-    assert certify_infeasible(solver, g.subgraph(factors=r.active(TOL)), r) is None
+    assert certify_infeasible(solver, g.subgraph(factors=r.active(TOL)), r, g) is None
     polished = _solver(p5).solve(g)
     assert polished.duals.rho == pytest.approx(1e-4 * solver.options.regularisation)
     assert max(np.abs(polished.duals.rows[ref]).max() for ref in outside) < 1e-6
@@ -100,17 +100,17 @@ def test_a_saddle_of_the_subgraph_is_refused_by_the_second_order_condition(monke
     assert set(r.active(TOL)) == set(away.factor_refs)    # the heuristic's candidate
     sol = _solver(restarts=2).solve(away)                  # ... which is feasible
     assert sol.feasible and abs(sol.values[away.variables[0]][0]) >= 0.5 - 1e-6
-    assert certify_infeasible(solver, away, r) is None
+    assert certify_infeasible(solver, away, r, g) is None
     # the first-order conditions hold there: only the curvature (-2 on `away`) refuses it
     real = np.linalg.eigvalsh
     monkeypatch.setattr(certificate.np.linalg, "eigvalsh", lambda a: np.abs(real(a)))
-    assert certify_infeasible(solver, away, r) is not None
+    assert certify_infeasible(solver, away, r, g) is not None
 
 
 def test_nothing_is_certified_from_a_feasible_point_or_without_multipliers(p5):
     g, away = _saddle()
     solver = _solver(restarts=0)
     r = solver.solve(g)
-    assert certify_infeasible(solver, away, type(r)(**{**r.__dict__, "duals": None})) is None
+    assert certify_infeasible(solver, away, type(r)(**{**r.__dict__, "duals": None}), g) is None
     ok = _solver(restarts=0).solve(away)
-    assert ok.feasible and certify_infeasible(solver, away, ok) is None
+    assert ok.feasible and certify_infeasible(solver, away, ok, away) is None

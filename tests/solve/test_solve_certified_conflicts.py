@@ -64,8 +64,8 @@ def test_a_restart_that_does_not_certify_the_conflict_gives_it_its_own_restarts(
         finally:
             inside.pop()
 
-    def certify(solver, g, point):                          # the restarts never certify
-        return None if inside else real_certify(solver, g, point)
+    def certify(solver, g, point, within):                  # the restarts never certify
+        return None if inside else real_certify(solver, g, point, within)
 
     monkeypatch.setattr(certificate, "certify_infeasible", certify)
     monkeypatch.setattr(loop._Checker, "confirm_by_parent", confirm_by_parent)
