@@ -855,9 +855,7 @@ class _Checker:
         from gnppdsl.nlp.certificate import certify_infeasible
 
         component = g.signature() in self.components
-        tol = self.run.options.tolerance
-
-        run, opts = self.run, self.solver.options
+        run, opts, tol = self.run, self.solver.options, self.run.options.tolerance
         warm = {v: self.values[v] for v in parent.variables if v in self.values}
         for k in range(1, max(0, opts.restarts) + 1):
             opts.time_limit = max(0.05, run.remaining())
