@@ -41,6 +41,8 @@ RESIDUAL = 1e-6        # max |stationarity residual| in x and on the slacks (mea
 ACTIVE = 1e-6          # |multiplier| above which a row or bound counts as strongly active
 STEP = 5e-2            # max |Newton step| of the reduced model (its region of trust)
 DECREASE = 1e-3        # max predicted change of the objective, as a share of the slacks' sum
+PUSH = 1e-4            # a row outside the subgraph with a larger multiplier on its variables: refused
+                       # before any evaluation (its push alone would leave a residual above RESIDUAL)
 MAX_DIM = 1500         # dense reduced Hessian: larger NLPs are not certified (solved instead)
 
 
@@ -66,6 +68,10 @@ def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: Feasib
     worst = max(per.values())
     if not worst > tol:
         return None                       # nothing of the contradiction is in graph
+    for v in graph.variables:             # a row outside graph pushing on its variables: the
+        for f in within.graph.neighbors(v):   # stationarity residual would be about that push
+            if f not in mine and f in duals.rows and np.abs(duals.rows[f]).max(initial=0.0) > PUSH:
+                return None
     a = solver.assemble(within)
     n, n_in, n_eq = a.n_x, a.n_ineq, a.n_eq
     stack = lambda d: np.concatenate([np.asarray(d[v], float).reshape(-1) for v in a.variables]) \
