@@ -74,9 +74,7 @@ def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: Feasib
                 return None
     a = solver.assemble(within)
     n, n_in, n_eq = a.n_x, a.n_ineq, a.n_eq
-    stack = lambda d: np.concatenate([np.asarray(d[v], float).reshape(-1) for v in a.variables]) \
-        if a.variables else np.zeros(0)
-    x, x0, lam_x = stack(point.values), stack(duals.start), stack(duals.bounds)
+    x, x0, lam_x = (_stacked(d, a.variables) for d in (point.values, duals.start, duals.bounds))
     h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
     hi, he = h[~a.kinds], h[a.kinds]
     z = np.concatenate([x, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
@@ -163,3 +161,10 @@ def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: Feasib
     return FeasibilityResult(False, values, per, worst, float(s.sum()), 0.0, 0,
                              "certified at a convergence point of a graph containing it", 0,
                              activity, restricted)
+
+
+def _stacked(per_variable: dict, variables: list) -> np.ndarray:
+    """The values of `variables` in one vector, in the assembled NLP's order."""
+    if not variables:
+        return np.zeros(0)
+    return np.concatenate([np.asarray(per_variable[v], float).reshape(-1) for v in variables])

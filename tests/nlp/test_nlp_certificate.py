@@ -107,7 +107,7 @@ def test_a_saddle_of_the_subgraph_is_refused_by_the_second_order_condition(monke
     assert certify_infeasible(solver, away, r, g) is not None
 
 
-def test_nothing_is_certified_from_a_feasible_point_or_without_multipliers(p5):
+def test_nothing_is_certified_from_a_feasible_point_or_without_multipliers():
     g, away = _saddle()
     solver = _solver(restarts=0)
     r = solver.solve(g)
