@@ -34,7 +34,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from gnppdsl.nlp.feasibility import FeasibilityResult, FeasibilitySolver
+from gnppdsl.nlp.feasibility import FeasibilityResult, FeasibilitySolver, elastic_point, g_rows_of
 from gnppdsl.nlp.graph import GraphNLP
 
 RESIDUAL = 1e-6        # max |stationarity residual| in x and on the slacks (measured ~5e-9 on p5)
@@ -75,13 +75,9 @@ def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: Feasib
     a = solver.assemble(within)
     n, n_in, n_eq = a.n_x, a.n_ineq, a.n_eq
     x, x0, lam_x = (_stacked(d, a.variables) for d in (point.values, duals.start, duals.bounds))
-    h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
-    hi, he = h[~a.kinds], h[a.kinds]
-    z = np.concatenate([x, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
+    z = elastic_point(a, x)
     # g's coordinates and rows inside within's NLP
-    g_row = np.empty(a.kinds.size, dtype=np.int64)          # h row -> its g row
-    g_row[~a.kinds] = np.arange(n_in)
-    g_row[a.kinds] = n_in + np.arange(n_eq)
+    g_row = g_rows_of(a)
     lam_g = np.zeros(a.lbg.size)
     rows, slacks = [], []
     for r, i0, i1 in a.factor_rows:

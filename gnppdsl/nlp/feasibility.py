@@ -31,7 +31,7 @@ import time
 import zlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Mapping, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -238,6 +238,18 @@ class Duals:
     rho: float                                 # the pull's weight
 
 
+class _Multipliers(NamedTuple):
+    """What one ipopt run (`FeasibilitySolver._run`) ended with besides its point: the
+    multipliers of the rows and bounds, the pull (centre x0, weight rho) and the whole z
+    (variables and slacks), from which a polish is warm-started."""
+
+    lam_g: np.ndarray
+    lam_x: np.ndarray
+    x0: np.ndarray
+    rho: float
+    z: np.ndarray
+
+
 @dataclass
 class _Assembled:
     solver: ca.Function
@@ -259,6 +271,22 @@ class _Assembled:
                                        # the cache key holds their ids)
     spec: tuple = ()                   # (name, plugin, nlp, options) of `solver`: see `_polisher`
     polisher: ca.Function | None = None
+
+
+def elastic_point(a: _Assembled, x: np.ndarray) -> np.ndarray:
+    """z = (x, the slacks at their optimum for x: each row's violation) of `a`'s elastic NLP."""
+    h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
+    hi, he = h[~a.kinds], h[a.kinds]
+    return np.concatenate([x, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
+
+
+def g_rows_of(a: _Assembled) -> np.ndarray:
+    """For each row of h (the factors' rows in order), its row in the elastic NLP's g, which
+    holds the inequality rows first, then the equality rows, then the unit quaternions."""
+    g_row = np.empty(a.kinds.size, dtype=np.int64)
+    g_row[~a.kinds] = np.arange(a.n_ineq)
+    g_row[a.kinds] = a.n_ineq + np.arange(a.n_eq)
+    return g_row
 
 
 def _bounds(v: VarInstance, bound, default: float) -> np.ndarray:
@@ -716,30 +744,28 @@ class FeasibilitySolver:
             a.polisher = ca.nlpsol(f"{name}_polish", plugin, nlp, {**opts, **warm})
         return a.polisher
 
-    def _run(self, a: _Assembled, x0: np.ndarray, rho: float, warm: tuple | None = None
-             ) -> tuple[np.ndarray, float, int, str, tuple | None]:
-        """One ipopt run from x0 with the pull rho towards it; `warm` = the multipliers tuple
-        of an earlier run from whose point x0 is (a polish): started from its z and
-        multipliers (`_polisher`)."""
+    def _run(self, a: _Assembled, x0: np.ndarray, rho: float, warm: _Multipliers | None = None
+             ) -> tuple[np.ndarray, float, int, str, _Multipliers | None]:
+        """One ipopt run from x0 with the pull rho towards it; `warm` = the multipliers of an
+        earlier run from whose point x0 is (a polish): started from its z and multipliers
+        (`_polisher`)."""
         solver = self._polisher(a) if warm is not None else None
         p = np.concatenate([x0, a.params, [rho]])
         if a.monitor is not None:
             a.monitor.reset(0.1 * self.options.tolerance, self.options.stall_iterations, self.deadline)
         if solver is not None:
-            lam_g0, lam_x0, _, _, z0 = warm
-            sol = solver(x0=z0, lam_x0=lam_x0, lam_g0=lam_g0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
+            sol = solver(x0=warm.z, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=a.lbx, ubx=a.ubx,
+                         lbg=a.lbg, ubg=a.ubg)
         else:
             solver = a.solver
-            h0 = np.asarray(a.h_fun(x0, a.params)).reshape(-1)
-            hi, he = h0[~a.kinds], h0[a.kinds]
-            z0 = np.concatenate([x0, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
-            z0 = np.nan_to_num(z0, nan=1.0, posinf=1e3, neginf=-1e3)
+            z0 = np.nan_to_num(elastic_point(a, x0), nan=1.0, posinf=1e3, neginf=-1e3)
             sol = solver(x0=z0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
         st = solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
         # multipliers of the constraint rows and of x's bounds, with the pull of this run
-        lam = (np.asarray(sol["lam_g"]).reshape(-1), np.asarray(sol["lam_x"]).reshape(-1), x0, rho, z)
+        lam = _Multipliers(np.asarray(sol["lam_g"]).reshape(-1), np.asarray(sol["lam_x"]).reshape(-1),
+                           x0, rho, z)
         status = str(st.get("return_status", ""))
         if a.monitor is not None and a.monitor.stalled and a.monitor.best_z is not None:
             z = a.monitor.best_z          # the best point seen, not where ipopt wandered to
@@ -749,28 +775,15 @@ class FeasibilitySolver:
         return z[:a.n_x], float(np.sum(z[a.n_x:])), int(st.get("iter_count", 0)), status, lam
 
     @staticmethod
-    def _activity(a: _Assembled, lam: tuple | None) -> dict[FactorRef, float]:
-        """Largest |multiplier| of each factor's elastic rows."""
-        duals = FeasibilitySolver._duals(a, lam)
-        if duals is None:
-            return {}
-        return {r: float(np.abs(m).max()) if m.size else 0.0 for r, m in duals.rows.items()}
-
-    @staticmethod
-    def _duals(a: _Assembled, lam: tuple | None) -> Duals | None:
-        """The multipliers of one ipopt run (`_run`) per factor and variable (g holds the
-        inequality rows first, then the equality rows, in the order of h, then the
-        unit-quaternion rows in the order of the variables)."""
+    def _duals(a: _Assembled, lam: _Multipliers | None) -> Duals | None:
+        """The multipliers of one ipopt run (`_run`) per factor and variable (`g_rows_of`; the
+        unit-quaternion rows follow in the order of the variables)."""
         if lam is None:
             return None
-        lam_g, lam_x, x0, rho, _ = lam
-        lam_x = lam_x[:a.n_x]
+        lam_g, lam_x, x0, rho = lam.lam_g, lam.lam_x[:a.n_x], lam.x0, lam.rho
         if not (np.all(np.isfinite(lam_g)) and np.all(np.isfinite(lam_x))):
             return None
-        g_row = np.empty(a.kinds.size, dtype=np.int64)
-        g_row[~a.kinds] = np.arange(a.n_ineq)
-        g_row[a.kinds] = a.n_ineq + np.arange(a.n_eq)
-        lam_h = lam_g[g_row]
+        lam_h = lam_g[g_rows_of(a)]
         rows = {r: lam_h[i0:i1].copy() for r, i0, i1 in a.factor_rows}
         quats, q = {}, a.n_ineq + a.n_eq
         for v in a.variables:
@@ -840,9 +853,12 @@ class FeasibilitySolver:
         values, per, worst, slack, status, _, lam = best
         dt = time.perf_counter() - t0
         self.solve_time += dt
+        duals = self._duals(a, lam) if worst > tol else None
+        # activity: per factor, the largest |multiplier| of its elastic rows
+        activity = {r: float(np.abs(m).max()) if m.size else 0.0 for r, m in duals.rows.items()} \
+            if duals is not None else {}
         return FeasibilityResult(worst <= tol, values, per, worst, slack, dt, iters, status,
-                                 starts, self._activity(a, lam) if worst > tol else {},
-                                 self._duals(a, lam) if worst > tol else None)
+                                 starts, activity, duals)
 
 
 def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarray] | None = None,
