@@ -42,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gnppdsl.errors import SolveFailure, UserError
+    from gnppdsl.solve.active_set import verified
     from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
 
     if args.switches is not None and set(args.switches) - set("trng"):
@@ -66,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     if args.verbose and not args.quiet:
         def progress(msg: str) -> None:
             emit(msg)
-    result = solve_compiled(compiled, options, progress=progress)
+    result = verified(compiled, solve_compiled(compiled, options, progress=progress), options)
     if args.json:
         try:
             result.write_json(args.json)

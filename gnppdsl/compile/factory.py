@@ -148,6 +148,80 @@ class GraphNLPFactory:
         expr = self._world(obj, ctx, acc, Obj(obj))
         return expr, tuple(self._var_instance(key, None) for key in acc.slots)
 
+    def pair_factor(self, states: Sequence[Sequence[int]], step: int, a: str | tuple[str, str],
+                    b: str | tuple[str, str], margin: float, waypoint: float | None = None,
+                    rule: str = "avoid") -> FactorInstance | None:
+        """One collision-avoidance factor `sdist(a, b) >= margin` at keyframe `step`, or along
+        the motion s_step -> s_step+1 at `waypoint` k (every robot at `path(r)[k]`; k + 0.5:
+        the midpoint of waypoints k and k+1, what a consumer replaying the motion linearly
+        passes through). Bodies: an object name or (robot, link); a scene object the problem
+        does not declare is a static obstacle at its scene pose. Resolved like a template call
+        (`world` along the kinematic chain of s_step; the facts read join the generating
+        partial state), so conflicts with it map back to partial states as usual. Why here and
+        not a template in a domain: the active set (`gnppdsl.solve.active_set`) adds the pairs
+        the verification finds near, which no rule lists. None when the motion does not exist
+        (the last step) or both bodies are static."""
+        full = [derive(self.task, s) for s in states]
+
+        def fixed(x) -> bool:
+            return not isinstance(x, tuple) and x not in self.problem.objects
+
+        if fixed(a) and fixed(b):
+            return None
+        acc = _Factor()
+        ctx = _Ctx(full, step, where=f"{rule} {a} / {b} at step {step}")
+        tags = {"collision"}
+        try:
+            if waypoint is not None:
+                tags.add("traj")
+                k0 = int(math.floor(waypoint))
+                subst = dict(ctx.subst)
+                for cv, traj, types in self._motions():
+                    for robot in self.scene.robots if self.scene is not None else ():
+                        if robot not in self.problem.objects or \
+                                not set(self.domain.ancestors(self.problem.objects[robot])) & set(types):
+                            continue
+                        at = Index(CVar(traj, (Obj(robot),)), Num(k0))
+                        if waypoint != k0:
+                            nxt = Index(CVar(traj, (Obj(robot),)), Num(k0 + 1))
+                            at = Call("mul", (Num(0.5), Call("add", (at, nxt))))
+                        subst[self._cvar_key(CVar(cv, (Obj(robot),)), ctx, acc, check=False)] = \
+                            self._resolve(at, ctx, acc)
+                ctx = ctx.child(subst=subst)
+            parts: list = []
+            for x in (a, b):
+                if fixed(x):
+                    parts += [Obj(x), Vec(tuple(Num(float(v)) for v in self._scene_pose(x, ctx, Obj(x))))]
+                elif isinstance(x, tuple):
+                    parts += self._body_and_pose(Call("link", (Obj(x[0]), Str(x[1]))), ctx, acc)
+                else:
+                    parts += self._body_and_pose(Obj(x), ctx, acc)
+        except _Skip:
+            return None
+        lhs = Call("sdist2" if self._dimension() == 2 else "sdist", tuple(parts))
+        body, used = _compact_slots((Constraint(lhs, ">=", Num(float(margin))),))
+        variables = tuple(self._var_instance(acc.slots[j], None) for j in used)
+        name = lambda x: "/".join(x) if isinstance(x, tuple) else x      # noqa: E731
+        return FactorInstance(template=rule, rule=rule, bindings=(("a", name(a)), ("b", name(b)))
+                              + ((("w", f"{waypoint:g}"),) if waypoint is not None else ()),
+                              tags=frozenset(tags), step=step, span=1,
+                              generator=(PartialState.of(acc.consulted[0].items()),),
+                              variables=variables, body=body)
+
+    def _motions(self) -> list[tuple[str, str, tuple[str, ...]]]:
+        """(configuration variable, trajectory variable, their parameter's types) triples: `q(r)` and `path(r)` declared
+        over the same parameter types and space (a trajectory is the motion of that variable)."""
+        out = []
+        for t in self.domain.continuous.values():
+            if not t.traj:
+                continue
+            for c in self.domain.continuous.values():
+                if not c.traj and c.space == t.space and len(t.params) == 1 and \
+                        [p.types for p in c.params] == [p.types for p in t.params]:
+                    out.append((c.name, t.name, t.params[0].types))
+                    break
+        return out
+
     def _factors(self, states) -> list[FactorInstance]:
         states = [derive(self.task, s) for s in states]
         if not states:

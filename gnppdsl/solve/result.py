@@ -20,7 +20,8 @@ SOLVED = "solved"
 NO_PLAN = "no_plan"                 # the logic planner proved no (further) plan exists up to the horizon
 TIME_LIMIT = "time_limit"
 SOLVER_FAILURE = "solver_failure"   # a plan's graph-NLP was feasible in every check but the full solve failed
-STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE)
+UNVERIFIED = "verification_failed"  # the solver's solution failed the independent verification and was not repaired
+STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE, UNVERIFIED)
 
 
 def algorithm_title(algorithm: str, switches: str | None) -> str:
@@ -119,6 +120,9 @@ class Result:
     conflicts: list[Conflict] = field(default_factory=list)
     stats: Stats = field(default_factory=Stats)
     time_limit: float | None = None
+    # the independent verification (`gnppdsl.solve.verify_solution`): {ok, failures: [{kind,
+    # step, waypoint, bodies, distance, message}], keyframes, waypoints, midpoints, min_distance}
+    verification: dict[str, Any] | None = None
     # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
     extras: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -147,6 +151,7 @@ class Result:
             "steps": [asdict(s) for s in self.steps],
             "conflicts": [c.to_json() for c in self.conflicts],
             "stats": _finite(asdict(self.stats)),
+            "verification": self.verification,
         }
 
     def write_json(self, path: str | Path) -> None:
@@ -197,6 +202,12 @@ class Result:
         if s.db_feasible_hits or s.db_infeasible_hits:
             lines.append(f"database: {s.db_feasible_hits} feasible and {s.db_infeasible_hits} "
                          f"infeasible hits (NLPs skipped)")
+        v = self.verification
+        if v is not None:
+            lines.append(f"independent verification (pinocchio + coal): {'OK' if v['ok'] else 'FAILED'}, "
+                         f"{v['keyframes']} keyframes, {v['waypoints']} waypoints, {v['midpoints']} midpoints"
+                         + ("" if v["min_distance"] is None else f", min distance {v['min_distance']:+.4f}"))
+            lines += [f"  {f['message']}" for f in v["failures"][:10]]
         if s.max_violation is not None:
             lines.append(f"independent re-check: max violation {s.max_violation:.2e} over "
                          f"{s.factors} factors, {s.variables} variables")
