@@ -1,13 +1,16 @@
-"""The workspace: loading .pntc files and modules, `use`, the standard library, shared pieces.
+"""The module library: loading .pntc files and modules, `use`, the standard library, shared pieces.
 
-Why one `Workspace` object: modules are shared by domains (the prelude by all of them), so
-they are parsed and resolved once per run and cached by path; every phase reports to one
-`Reporter`, so `gnpp check a.pntc b.pntc` lists every error of every file together.
+Why one `ModuleLibrary` (the base of `workspace.Workspace`): modules are shared by domains (the
+prelude by all of them), so they are parsed and resolved once per run and cached by path; every
+phase reports to one `Reporter`, so `gnpp check a.pntc b.pntc` lists every error of every file
+together.
 
 This module knows files and modules (and the pieces every resolver shares: value spaces,
 signatures, constants, template bodies, which declaration goes where); what a domain or a
-problem means is in `resolve_domain` and `resolve_problem`, which `Workspace.domain` and
-`Workspace.problem` hand the parsed file to.
+problem means is in `resolve_domain` and `resolve_problem`, which read this library, and
+`workspace.Workspace` hands them the parsed file. Why the cut here: the resolvers call back
+into the shared pieces, so those sit below them and the workspace that starts them sits above
+(no import cycle).
 """
 from __future__ import annotations
 
@@ -75,8 +78,9 @@ def note_param(err, seen: set[str], name: ast.Name) -> None:
     seen.add(name.value)
 
 
-class Workspace:
-    """Loads and resolves .pntc files; all diagnostics go to `self.reporter`."""
+class ModuleLibrary:
+    """Loads .pntc files and modules and holds the pieces every resolver shares; all
+    diagnostics go to `self.reporter`. `workspace.Workspace` adds domains and problems."""
 
     def __init__(self, reporter: Reporter | None = None, stdlib: Path | None = None) -> None:
         self.reporter = reporter or Reporter()
@@ -84,7 +88,6 @@ class Workspace:
         self._asts: dict[str, ast.FileAst | None] = {}
         self._modules: dict[str, ModuleEnv | None] = {}
         self._loading: set[str] = set()
-        self._domains: dict[str, M.Domain | None] = {}
 
     # ------------------------------------------------------------------ files
     @property
@@ -337,40 +340,6 @@ class Workspace:
                      f"not-a-{kind}")
             return None
         return f
-
-    # ------------------------------------------------------------------ domains
-    def domain(self, path: str | Path) -> M.Domain | None:
-        key = str(Path(path))
-        if key not in self._domains:
-            self._domains[key] = None
-            f = self._parse_kind(key, "domain")
-            if f is None:
-                return None
-            # the domain resolver calls back into this workspace (modules, shared pieces):
-            # imported here, where the cycle is, so the import direction stays one way
-            from gnppdsl.ir.resolve_domain import DomainResolver
-
-            self._domains[key] = DomainResolver(self, f).run()
-        return self._domains[key]
-
-    def problem(self, path: str | Path, domain_path: str | Path | None = None) -> M.Problem | None:
-        f = self._parse_kind(path, "problem")
-        if f is None:
-            return None
-        if domain_path is None:
-            domain_path = self.find_domain(f)
-            if domain_path is None:
-                return None
-        dom = self.domain(domain_path)
-        if dom is None:
-            return None
-        if dom.name != f.header.domain.value:
-            self.err(f.header.domain.span, f"problem is for domain '{f.header.domain.value}', "
-                     f"but {domain_path} declares domain '{dom.name}'", "wrong-domain")
-            return None
-        from gnppdsl.ir.resolve_problem import ProblemResolver  # calls back too, see domain()
-
-        return ProblemResolver(self, f, dom).run()
 
     def find_domain(self, f: ast.FileAst, candidates: list[str] | None = None) -> str | None:
         """Domain discovery: given files, `domain.pntc` next to the problem, any sibling file
