@@ -35,6 +35,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--csv", default=None, metavar="FILE",
                         help="one row per run, appended as each run ends; an existing file of an "
                              "earlier sweep is resumed (only the runs it lacks are run)")
+    parser.add_argument("--markdown", default=None, metavar="FILE",
+                        help="also write the table as markdown, the paper's Table I CPU times beside "
+                             "each measured problem that has a paper name (lab4 -> Lab_4)")
+    parser.add_argument("--plot", default=None, metavar="PNG",
+                        help="bar plot of CPU time per problem, this project beside the paper's Table I "
+                             "(needs matplotlib)")
     parser.add_argument("--workers", type=int, default=1, metavar="N",
                         help="run N runs at a time on a local Ray (each in its own process with "
                              "--run-timeout and --memory-limit); 1 (default): one after another "
@@ -156,6 +162,16 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise UserError("--memory-limit must be at least 64 (MB)")
 
 
+def _write_text(path: str, text: str, option: str) -> None:
+    from gnppdsl.errors import UserError
+
+    try:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text)
+    except OSError as exc:
+        raise UserError(f"{option} {path}: {exc.strerror or exc}") from None
+
+
 def run(args: argparse.Namespace) -> int:
     from gnppdsl.cli.sweep import CsvJournal, RunSettings, grid, run_on_ray, run_serial
 
@@ -216,6 +232,15 @@ def run(args: argparse.Namespace) -> int:
     print(f"distance queries: {native.describe()}")
     if skipped:
         print(f"skipped (load errors): {', '.join(skipped)}")
+    if args.markdown:
+        from gnppdsl.cli.table1 import markdown
+        _write_text(args.markdown, markdown(names, specs, rows), "--markdown")
+        print(f"wrote {args.markdown}")
+    if args.plot:
+        from gnppdsl.cli.table1 import plot
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        plot(names, specs, rows, args.plot)
+        print(f"wrote {args.plot}")
     if journal:
         print(f"{len(todo)} runs added to {args.csv} ({len(journal.rows)} in all)")
     return 2 if skipped else 0
