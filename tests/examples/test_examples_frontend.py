@@ -139,7 +139,7 @@ def test_expected_plan_compiles(d, name, e):
         # end_move move only the base), trajectories for every robot and phase
         drives = sum(a.strip().startswith(("start_move(", "end_move(")) for a in plan.split(";"))
         assert by_template["kin_switch_rel"] == n - drives
-        arms = c.problem.objects_of("arm") + (c.problem.objects_of("mobile") if d == "field" else [])
+        arms = list(c.problem.objects_of("arm")) + (list(c.problem.objects_of("mobile")) if d == "field" else [])
         assert by_template["boundary"] == len(arms) * n
         assert by_template["grasp"] >= 1 and by_template["on"] >= 1
         assert by_template["clear_arms"] == n + 1
