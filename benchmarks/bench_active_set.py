@@ -44,7 +44,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from gnppdsl.solve.active_set import verified, verify
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+    from gnppdsl.solve.compiled import load_and_compile
+    from gnppdsl.solve.loop import solve_compiled
+    from gnppdsl.solve.options import SolveOptions
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_as_"))
     configs = []

@@ -71,8 +71,10 @@ def main(argv=None) -> int:
 
     from gnppdsl.geometry import native
     from gnppdsl.nlp import jit
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
     from gnppdsl.solve.active_set import verified, verify
+    from gnppdsl.solve.compiled import load_and_compile
+    from gnppdsl.solve.loop import solve_compiled
+    from gnppdsl.solve.options import SolveOptions
 
     expected = yaml.safe_load((LAB / "expected.yaml").read_text())["problems"]
     names = args.problems or sorted(expected)

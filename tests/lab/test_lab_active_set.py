@@ -14,7 +14,9 @@ import pytest
 
 from gnppdsl.ir.expr import Call, Obj
 from gnppdsl.solve.active_set import verified, verify
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 
 ROOT = Path(__file__).resolve().parents[2]
 DOMAIN = ROOT / "examples" / "lab" / "domain.pntc"
