@@ -214,6 +214,26 @@ class Result:
         return "\n".join(lines)
 
 
+def steps_of(task: Any, plan: Any, graph: Any, values: dict) -> list[Step]:
+    """The steps of a solution: each state s_i of `plan` (a logic plan) as text with the values
+    of the graph's variables at step i (trajectories as waypoint lists)."""
+    import numpy as np
+
+    steps = []
+    for i, s in enumerate(plan.states):
+        st = Step(i, plan.names[i - 1] if i > 0 else None, task.state_str(s))
+        for v in graph.variables:
+            if v.step != i or v not in values:
+                continue
+            x = np.asarray(values[v], float).reshape(-1)
+            if v.waypoints:
+                st.trajectories[v.key] = x.reshape(v.waypoints, v.point_dim).tolist()
+            else:
+                st.values[v.key] = x.tolist()
+        steps.append(st)
+    return steps
+
+
 def _opt(x: Any) -> str:
     return "-" if x is None else str(x)
 

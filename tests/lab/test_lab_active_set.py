@@ -1,4 +1,5 @@
-"""The active set (`gnppdsl.solve.active_set`) and the verification that drives it, on the Lab.
+"""The active set (`gnppdsl.solve.coverage`, `gnppdsl.solve.active_set`) and the verification
+that drives it, on the Lab.
 
 Oracle: the independent verification (pinocchio FK + direct coal distances over every pair,
 `gnppdsl.solve.verify_solution`), which shares no code with the factors the NLP solves.
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 
 from gnppdsl.ir.expr import Call, Obj
-from gnppdsl.solve.active_set import verified, verify
+from gnppdsl.solve.active_set import verify
 from gnppdsl.solve.compiled import load_and_compile
 from gnppdsl.solve.loop import solve_compiled
 from gnppdsl.solve.options import SolveOptions
@@ -36,21 +37,23 @@ def wall():
     obstacle no rule of the domain lists, across the carrying motion's straight path."""
     c = load_and_compile([str(DOMAIN), str(ROOT / "tests" / "lab" / "data" / "lab_wall.pntc")])
     opts = SolveOptions.from_settings(c.problem.settings, time_limit=120)
-    return c, opts, solve_compiled(c, opts)
+    return c, opts
 
 
 def test_a_pair_outside_every_rule_collides_before_the_active_set_and_is_clean_after(wall):
-    c, opts, r = wall
-    assert r.status == "solved", r.message
+    c, opts = wall
+    r = solve_compiled(c, replace(opts, active_set=False))
+    assert r.status == "verification_failed", r.message
     graph = r.extras["graph"]
     # no factor the rules produced mentions the wall ...
     assert not any(_mentions(k.lhs, "wall") for f in graph.factor_instances for k in f.body)
     # ... so the NLP's solution goes through it (the verification says so)
+    assert not r.verification["ok"]
     before = verify(c, r)
-    assert not before.ok
     assert {f.kind for f in before.issues} == {"collision"}
     assert all("wall" in f.bodies for f in before.issues), before.failures
-    fixed = verified(c, copy.copy(r), opts)
+    assert len(r.verification["failures"]) == len(before.issues)
+    fixed = solve_compiled(c, opts)
     assert fixed.status == "solved", fixed.message
     assert fixed.verification["ok"] and fixed.verification["failures"] == []
     added = [f for f in fixed.extras["graph"].factor_instances if f.rule == "avoid"]
@@ -64,8 +67,9 @@ def test_a_pair_outside_every_rule_collides_before_the_active_set_and_is_clean_a
 def lab1():
     c = load_and_compile(str(ROOT / "examples" / "lab" / "lab1.pntc"))
     opts = SolveOptions.from_settings(c.problem.settings, time_limit=120)
-    r = verified(c, solve_compiled(c, opts), opts)
+    r = solve_compiled(c, opts)
     assert r.status == "solved", r.message
+    assert r.verification["ok"]
     return c, r
 
 
@@ -135,6 +139,7 @@ def test_a_broken_placement_and_a_missed_goal_are_detected(lab1):
 
 
 def test_verification_json_of_gnpp_solve(tmp_path, capsys):
+    """`gnpp solve --json` carries the verification (p1: planar, 0.1 s)."""
     import json
 
     from gnppdsl.cli.main import main
@@ -147,10 +152,11 @@ def test_verification_json_of_gnpp_solve(tmp_path, capsys):
 
 
 def test_a_failed_verification_is_not_solved_and_exits_1(tmp_path, monkeypatch, capsys):
-    """A solver result the verification rejects and the active set cannot repair (here: every
-    pair checked, the gripper and its region too, at a margin of 0.5 m that the pair factors,
-    at the domain's margin 0, do not ask for) is reported as verification_failed, exit 1, with
-    its failures in the JSON."""
+    """A solution the verification rejects (here: every pair checked, the gripper and its
+    region too, at a margin of 0.5 m) is, without the active set, reported as
+    verification_failed, exit 1, with its failures in the JSON; with it, the pairs join the
+    NLP, whose infeasibility becomes a conflict of the loop (the gripper cannot keep off the
+    region it places b1 in), and no plan is left."""
     import json
 
     from gnppdsl.cli.main import main
@@ -160,10 +166,16 @@ def test_a_failed_verification_is_not_solved_and_exits_1(tmp_path, monkeypatch, 
     monkeypatch.setattr(active_set, "verify_solution",
                         lambda *a, **kw: real(*a, **{**kw, "margin": 0.5, "avoid": None}))
     out = tmp_path / "r.json"
-    rc = main(["solve", str(ROOT / "examples" / "planar" / "p1_one_block.pntc"), "--json", str(out)])
+    rc = main(["solve", str(ROOT / "examples" / "planar" / "p1_one_block.pntc"), "--json", str(out),
+               "--no-active-set"])
     assert rc == 1
     d = json.loads(out.read_text())
     assert d["status"] == "verification_failed" and not d["solved"]
     f = d["verification"]["failures"][0]
     assert f["kind"] == "collision" and len(f["bodies"]) == 2 and f["distance"] < 0.5
     assert "verification" in capsys.readouterr().err
+    rc = main(["solve", str(ROOT / "examples" / "planar" / "p1_one_block.pntc"), "--json", str(out)])
+    d = json.loads(out.read_text())
+    assert rc == 1 and d["status"] == "no_plan"
+    assert any(c["text"] == "{parent(b1) = g} -> {parent(b1) = r1}" and "avoid" in " ".join(c["factors"])
+               for c in d["conflicts"]), d["conflicts"]
