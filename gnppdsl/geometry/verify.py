@@ -208,17 +208,16 @@ def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterabl
     bodies = placed_bodies(ctx, state)
     self_pairs = {name: {frozenset(p) for p in ctx.robot(name).self_pairs}
                   for name, s in ctx.scene.robots.items() if s.kind == "urdf"} if self_collision else {}
-    near = None
     if cutoff is not None and bodies:
         cs, rs = sphere_bounds(ctx, bodies)
         gap = np.linalg.norm(cs[:, None, :] - cs[None, :, :], axis=2) - rs[:, None] - rs[None, :]
-        near = gap <= cutoff
-    index = {id(p): i for i, p in enumerate(bodies)}
+        ii, jj = np.nonzero(np.triu(gap <= cutoff, 1))        # the candidates, in one expression
+        candidates = ((bodies[i], bodies[j]) for i, j in zip(ii.tolist(), jj.tolist()))
+    else:
+        candidates = itertools.combinations(bodies, 2)
     out = []
-    for a, b in itertools.combinations(bodies, 2):
+    for a, b in candidates:
         if a.static and b.static:
-            continue
-        if near is not None and not near[index[id(a)], index[id(b)]]:
             continue
         if keep is not None and not keep(a, b):
             continue

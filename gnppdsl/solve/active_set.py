@@ -42,10 +42,11 @@ def active_set_of(problem: Any) -> ActiveSet:
 
 
 def verify(compiled: Any, result: Any, settings: ActiveSet | None = None, **kw: Any) -> SolutionReport:
-    """The independent verification of a result of this compiled problem."""
+    """The independent verification of a result of this compiled problem (its `near` list: the
+    pairs closer than the active set's margin + near)."""
     settings = settings or active_set_of(compiled.problem)
     return verify_solution(compiled.geometry, result, avoid=settings.avoid,
-                           declared=compiled.problem.objects, **kw)
+                           declared=compiled.problem.objects, near=settings.margin + settings.near, **kw)
 
 
 def _body(name: str) -> str | tuple[str, str]:
@@ -56,21 +57,16 @@ def _parents(result: Any, step: int) -> dict[str, str]:
     return {o: p for var, o, p in _FACT.findall(result.steps[step].state) if var == "parent"}
 
 
-def near_pairs(compiled: Any, result: Any, settings: ActiveSet) -> list[tuple[int, float | None, str, str]]:
-    """(step, waypoint, body a, body b) of every covered pair closer than margin + near,
-    except resting and grasp contacts (an object with its parent)."""
-    rep = verify(compiled, result, settings, margin=settings.margin + settings.near, check_logic=False,
-                 tolerance=0.0)
+def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | None, str, str]]:
+    """(step, waypoint, body a, body b) of every covered pair the verification found closer than
+    margin + near (`verify`), except resting and grasp contacts (an object with its parent)."""
     out = []
-    for f in rep.issues:
-        if f.kind != "collision":
-            continue
-        a, b = f.bodies
-        parents = _parents(result, f.step)
-        owner = lambda x: x.split("/", 1)[0]       # noqa: E731
+    owner = lambda x: x.split("/", 1)[0]       # noqa: E731
+    for step, wp, a, b, _ in report.near:
+        parents = _parents(result, step)
         if parents.get(a) == owner(b) or parents.get(b) == owner(a):
             continue
-        out.append((f.step, f.waypoint, a, b))
+        out.append((step, wp, a, b))
     return out
 
 
@@ -80,13 +76,14 @@ def _known(factors) -> set:
             for f in factors if f.rule == "avoid"}
 
 
-def pair_factors(compiled: Any, result: Result, graph: Any, settings: ActiveSet) -> list:
+def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: Any,
+                 settings: ActiveSet) -> list:
     """The factors (`GraphNLPFactory.pair_factor`, at the domain's margin) of the near pairs of
-    `result` that `graph` does not hold yet."""
+    `result` (its verification `report`) that `graph` does not hold yet."""
     plan = result.extras["plan"]
     known = _known(graph.factor_instances)
     new = []
-    for step, wp, a, b in near_pairs(compiled, result, settings):
+    for step, wp, a, b in near_pairs(result, report):
         key = (step, None if wp is None else f"{wp:g}", frozenset((a, b)))
         if key in known:
             continue

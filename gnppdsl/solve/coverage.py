@@ -45,7 +45,7 @@ class Coverage(PlanEvaluation):
             if report.ok or not self.options.active_set or rounds >= settings.max_rounds \
                     or any(f.kind != "collision" for f in report.issues):
                 break
-            new = pair_factors(self.compiled, res, graph, settings)
+            new = pair_factors(self.compiled, res, report, graph, settings)
             if not new:
                 break
             rounds += 1

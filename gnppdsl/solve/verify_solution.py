@@ -97,6 +97,8 @@ class SolutionReport:
     waypoints: int = 0
     midpoints: int = 0
     min_distance: float = np.inf          # smallest pair distance seen (keyframes, waypoints, midpoints)
+    # (step, waypoint, body a, body b, distance) of every checked pair closer than `near`
+    near: list[tuple] = field(default_factory=list)
 
     @property
     def failures(self) -> list[str]:
@@ -174,7 +176,7 @@ def avoid_filter(ctx: Any, avoid: tuple[str, ...] | None, fixed: frozenset = fro
 def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, tolerance: float = 1e-4,
                     rest_tolerance: float = 2e-3, gripper_opening: float = 0.08,
                     planar_grasp: float | None = None, avoid: tuple[str, ...] | None = None,
-                    declared: Any = None,
+                    declared: Any = None, near: float | None = None,
                     midpoints: bool = True,
                     parent_var: str = "parent", pose_var: str = "pose", config_var: str = "q",
                     path_var: str = "path", self_collision: bool = True,
@@ -184,7 +186,8 @@ def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, tolerance: 
     object (the templates' upright tolerance lets a 15 cm block tilt 0.8 deg: 1.1 mm at its
     lowest corner); `avoid`: the categories of `CATEGORIES` whose pairs are checked (the
     domain's `avoid` declaration; None: all); `declared`: the problem's objects (the other scene
-    objects are static obstacles; None: all are the problem's). See the module docstring."""
+    objects are static obstacles; None: all are the problem's); `near`: pairs closer than this
+    are listed in `SolutionReport.near` (what the active set adds). See the module docstring."""
     rep = SolutionReport(ok=True)
     fail = rep.issues.append
     sc = ctx.scene
@@ -227,6 +230,8 @@ def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, tolerance: 
         for d in dists:
             if d.distance < margin - tolerance:
                 fail(Failure("collision", step, waypoint, (d.a, d.b), d.distance))
+            if near is not None and d.distance < near:
+                rep.near.append((step, waypoint, d.a, d.b, d.distance))
 
     def limits(configs: dict, step: int, waypoint: float | None) -> None:
         for r in urdf:
