@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from gnppdsl.solve.result import Result
-from gnppdsl.solve.verify_solution import SolutionReport, _FACT, verify_solution
+from gnppdsl.solve.verify_solution import SolutionReport, _FACT, plan_failures, verify_solution
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class ActiveSet:
 
 def active_set_of(problem: Any) -> ActiveSet:
     """The domain's `avoid` declaration as settings (default: all categories, margin 0)."""
-    decl = getattr(problem.domain, "avoid", None)
+    decl = getattr(getattr(problem, "domain", None), "avoid", None)
     if decl is None:
         return ActiveSet()
     return ActiveSet(avoid=tuple(decl.categories), margin=float(decl.margin))
@@ -45,6 +45,9 @@ def verify(compiled: Any, result: Any, settings: ActiveSet | None = None, **kw: 
     """The independent verification of a result of this compiled problem (its `near` list: the
     pairs closer than the active set's margin + near)."""
     settings = settings or active_set_of(compiled.problem)
+    if compiled.geometry is None:        # no scene: nothing but the plan to verify
+        issues = plan_failures(result)
+        return SolutionReport(not issues, issues, keyframes=len(result.steps))
     return verify_solution(compiled.geometry, result, avoid=settings.avoid,
                            declared=compiled.problem.objects, near=settings.margin + settings.near, **kw)
 
