@@ -98,8 +98,10 @@ def write_problem(directory: Path, seed: int) -> Path:
 class Gnpp:
     """The keyframe NLP and the two path NLPs of the plan, as the solve loop builds them."""
 
-    def __init__(self) -> None:
+    def __init__(self, solver_options: dict | None = None, jit: str = "off") -> None:
+        self.jit = jit                         # gnppdsl.nlp.jit mode of the template compiler
         self.compilers: dict | None = None     # template Functions shared across seeds
+        self.solver_options = dict(solver_options or {})   # SolverOptions fields to override
 
     def solve(self, problem: Path, seed: int) -> dict:
         from gnppdsl.compile.semantics import parse_plan, plan_states
@@ -113,12 +115,13 @@ class Gnpp:
         else:
             # same templates, shapes and robot model: only poses (lifted parameters) differ
             c.compilers = self.compilers
-        compiler = c.body_compiler("off")
+        compiler = c.body_compiler(self.jit)
         s = c.problem.settings
 
         def solver() -> FeasibilitySolver:
-            opts = SolverOptions(tolerance=s.tolerance if s and s.tolerance else 1e-6, restarts=0,
-                                 distance_curvature=False)
+            kw = {"tolerance": s.tolerance if s and s.tolerance else 1e-6, "restarts": 0,
+                  "distance_curvature": False, **self.solver_options}
+            opts = SolverOptions(**kw)
             return FeasibilitySolver(c.geometry, opts, compiler=compiler)
 
         g = plan_graph(c.factory, plan_states(c.task, parse_plan(c.task, PLAN)))
@@ -261,9 +264,15 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         ry = None
     sides = [s for s in ("gnpp", "komo") if args.only in (None, s)]
+    import importlib.util
+
     from gnppdsl.geometry import native
-    print(f"bench_komo: {args.seeds} seeds, CPU time, distances: {native.describe()}, "
-          f"template Functions built in the unmeasured warm-up")
+    src = ROOT / "gnppdsl" / "solve" / "loop.py"
+    pyc = Path(importlib.util.cache_from_source(str(src)))
+    fresh = pyc.is_file() and pyc.stat().st_mtime >= src.stat().st_mtime
+    print(f"bench_komo: {args.seeds} seeds, CPU time, distances: {native.describe()}, template "
+          f"Functions built in the unmeasured warm-up; gnppdsl bytecode "
+          f"{'cached' if fresh else 'NOT cached (each gnpp process compiles its sources: make setup)'}")
     scratch = Path(tempfile.mkdtemp(prefix="bench_komo_"))
     cwd = os.getcwd()
     os.chdir(scratch)                      # rai writes z.log.global into the working directory
@@ -273,24 +282,29 @@ def main(argv: list[str] | None = None) -> int:
         rows: dict[str, list[dict]] = {s: [] for s in sides}
         warm = {"gnpp": lambda: gnpp.solve(write_problem(scratch / "warm", 1000), 1000),
                 "komo": lambda: komo_solve(ry, 1000)}
+        def end_to_end(s: str, problem: Path, seed: int, r: dict) -> None:
+            if s == "gnpp":
+                cmd = [sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB / "domain.pntc"),
+                       str(problem), "--quiet", "--no-jit", "--json", str(problem.parent / "out.json")]
+                r["e2e"], _ = child_cpu(cmd, scratch, env)
+                res = json.loads((problem.parent / "out.json").read_text())
+                r["e2e_ok"] = bool(res.get("solved"))
+                r["e2e_solve"] = float(res.get("stats", {}).get("cpu_time", float("nan")))
+            else:
+                cmd = [sys.executable, str(Path(__file__).resolve()), "--komo-process", str(seed)]
+                r["e2e"], outp = child_cpu(cmd, scratch, env)
+                r["e2e_ok"] = '"solved": true' in outp
+
         for s in sides:
             warm[s]()
+            if not args.no_e2e:                # file system caches, as for every later process
+                end_to_end(s, write_problem(scratch / "warm", 1000), 1000, {})
         for seed in range(args.seeds):
             problem = write_problem(scratch / f"s{seed}", seed)
             for s in sides:
                 r = gnpp.solve(problem, seed) if s == "gnpp" else komo_solve(ry, seed)
                 if not args.no_e2e:
-                    if s == "gnpp":
-                        cmd = [sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB / "domain.pntc"),
-                               str(problem), "--quiet", "--no-jit", "--json", str(problem.parent / "out.json")]
-                        r["e2e"], _ = child_cpu(cmd, scratch, env)
-                        res = json.loads((problem.parent / "out.json").read_text())
-                        r["e2e_ok"] = bool(res.get("solved"))
-                        r["e2e_solve"] = float(res.get("stats", {}).get("cpu_time", float("nan")))
-                    else:
-                        cmd = [sys.executable, str(Path(__file__).resolve()), "--komo-process", str(seed)]
-                        r["e2e"], outp = child_cpu(cmd, scratch, env)
-                        r["e2e_ok"] = '"solved": true' in outp
+                    end_to_end(s, problem, seed, r)
                 rows[s].append(r)
             line = "  ".join(f"{s}: kf {rows[s][-1]['keyframe'] * 1e3:6.1f} ms "
                              f"paths {sum(rows[s][-1]['path']) * 1e3:6.1f} ms"
