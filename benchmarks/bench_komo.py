@@ -223,7 +223,8 @@ def komo_solve(ry, seed: int) -> dict:
 
 
 def komo_main(seed: int) -> int:
-    """The KOMO end-to-end process: import, build, keyframes, both motions; prints the verdict."""
+    """The KOMO end-to-end process: import, build, keyframes, both motions; prints the verdict
+    (run in the scratch directory, like the parent)."""
     import robotic as ry
     r = komo_solve(ry, seed)
     print(json.dumps({"solved": r["keyframe_ok"] and len(r["path_ok"]) == 2 and all(r["path_ok"])}))
@@ -255,14 +256,18 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.komo_process is not None:
         return komo_main(args.komo_process)
+    scratch = Path(tempfile.mkdtemp(prefix="bench_komo_"))
+    cwd = os.getcwd()
+    os.chdir(scratch)                      # rai writes z.log.global into the working directory
     try:
         import robotic as ry
     except ImportError as e:
+        ry = None
         if args.only != "gnpp":
+            os.chdir(cwd)
             print(f"bench_komo: rai/KOMO is not installed ({e}); `pip install robotic` "
                   "(and apt-get install liblapack3 libglut3.12). Nothing measured.")
             return 0
-        ry = None
     sides = [s for s in ("gnpp", "komo") if args.only in (None, s)]
     import importlib.util
 
@@ -273,9 +278,6 @@ def main(argv: list[str] | None = None) -> int:
     print(f"bench_komo: {args.seeds} seeds, CPU time, distances: {native.describe()}, template "
           f"Functions built in the unmeasured warm-up; gnppdsl bytecode "
           f"{'cached' if fresh else 'NOT cached (each gnpp process compiles its sources: make setup)'}")
-    scratch = Path(tempfile.mkdtemp(prefix="bench_komo_"))
-    cwd = os.getcwd()
-    os.chdir(scratch)                      # rai writes z.log.global into the working directory
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     try:
         gnpp = Gnpp()
