@@ -106,8 +106,10 @@ class Gnpp:
     def solve(self, problem: Path, seed: int) -> dict:
         from gnppdsl.compile.semantics import parse_plan, plan_states
         from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
-        from gnppdsl.solve.loop import (GraphNLPView, _fixed, interpolate_trajectories,
-                                        load_and_compile, plan_graph)
+        from gnppdsl import load_and_compile
+        from gnppdsl.solve.interpolation import interpolate_trajectories
+        from gnppdsl.solve.motions import GraphNLPView, _fixed
+        from gnppdsl.solve.plan_graph import plan_graph
 
         c = load_and_compile([str(LAB / "domain.pntc"), str(problem)])
         if self.compilers is None:
