@@ -7,7 +7,7 @@ and the scene; every pair at every waypoint would be ~10^4 distance rows per mot
 of them 20 cm or more apart. The independent verification (`gnppdsl.solve.verify_solution`,
 pinocchio + coal with a bounding-sphere broadphase over ALL pairs) already finds the pairs that
 matter at a solution; this module turns each one closer than `ActiveSet.near` into a factor
-(`GraphNLPFactory.pair_factor`: sdist(a, b) >= margin at that keyframe, waypoint or midpoint);
+(`gnppdsl.compile.pair_factors`: sdist(a, b) >= margin at that keyframe, waypoint or midpoint);
 the loop adds them to the plan's graph-NLP and solves it again warm-started from the solution,
 until the verification is clean (or `max_rounds`). Pairs in resting contact (an object and its parent, a
 held object and its robot) are left to the domain's `on` / `grasp` factors: their signed
@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from gnppdsl.compile.pair_factors import pair_factor
 from gnppdsl.solve.result import Result
 from gnppdsl.solve.verify_solution import SolutionReport, _FACT, plan_failures, verify_solution
 
@@ -81,7 +82,7 @@ def _known(factors) -> set:
 
 def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: Any,
                  settings: ActiveSet) -> list:
-    """The factors (`GraphNLPFactory.pair_factor`, at the domain's margin) of the near pairs of
+    """The factors (`gnppdsl.compile.pair_factors`, at the domain's margin) of the near pairs of
     `result` (its verification `report`) that `graph` does not hold yet."""
     plan = result.extras["plan"]
     known = _known(graph.factor_instances)
@@ -91,7 +92,7 @@ def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: A
         if key in known:
             continue
         known.add(key)
-        f = compiled.factory.pair_factor(plan.states, step, _body(a), _body(b), settings.margin, wp)
+        f = pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp)
         if f is not None:
             new.append(f)
     return new

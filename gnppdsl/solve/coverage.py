@@ -3,7 +3,7 @@ returned, and the pairs the verification finds near join the plan's graph-NLP un
 
 Why in the loop and not after it: the pairs a solution brings near can make the plan's graph
 infeasible (an arm that cannot reach past the other); that is a conflict like any other (the
-pair factors carry generating partial states, `GraphNLPFactory.pair_factor`), so the loop goes
+pair factors carry generating partial states, `gnppdsl.compile.pair_factors`), so the loop goes
 on to the next plan instead of ending with a colliding or no solution. Each round first solves
 the augmented full graph from the solution (one NLP, a warm start that is feasible except for
 the new rows); only when that fails is Algorithm 1 run on it (`PlanEvaluation.evaluate`), which

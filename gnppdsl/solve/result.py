@@ -102,6 +102,10 @@ class Stats:
     N0: int | None = None             # length of the first logical plan
     N: int | None = None              # length of the returned solution
     max_violation: float | None = None   # independent re-check of every factor at the solution
+    cost: float | None = None         # the objective (`minimize` terms) at the returned solution
+    cost_feasible: float | None = None   # ... at the loop's feasible solution, before optimising
+    optimised: bool = False           # the optimisation phase's point replaced that solution
+    optimise_time: float = 0.0        # CPU seconds of the optimisation phase
     factors: int = 0                  # factors in the solution's graph-NLP
     variables: int = 0
 
@@ -123,6 +127,8 @@ class Result:
     # the independent verification (`gnppdsl.solve.verify_solution`): {ok, failures: [{kind,
     # step, waypoint, bodies, distance, message}], keyframes, waypoints, midpoints, min_distance}
     verification: dict[str, Any] | None = None
+    # robot -> {"base": metres driven (None: fixed base), "end_effector": metres}
+    path_length: dict[str, dict[str, float | None]] = field(default_factory=dict)
     # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
     extras: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -150,6 +156,8 @@ class Result:
             "plan": list(self.plan),
             "steps": [asdict(s) for s in self.steps],
             "conflicts": [c.to_json() for c in self.conflicts],
+            "cost": _finite({"cost": self.stats.cost})["cost"],
+            "path_length": _finite(self.path_length),
             "stats": _finite(asdict(self.stats)),
             "verification": self.verification,
         }
@@ -208,6 +216,13 @@ class Result:
                          f"{v['keyframes']} keyframes, {v['waypoints']} waypoints, {v['midpoints']} midpoints"
                          + ("" if v["min_distance"] is None else f", min distance {v['min_distance']:+.4f}"))
             lines += [f"  {f['message']}" for f in v["failures"][:10]]
+        if s.cost is not None:
+            how = ("optimised" if s.optimised else "not improved") + f" in {s.optimise_time:.2f} s"
+            lines.append(f"objective: {s.cost:.6g} (the feasible solution's: {s.cost_feasible:.6g}; {how})")
+        for robot, lengths in self.path_length.items():
+            parts = [f"{k.replace('_', ' ')} {v:.3f} m" for k, v in lengths.items() if v is not None]
+            if parts:
+                lines.append(f"path length of {robot}: {', '.join(parts)}")
         if s.max_violation is not None:
             lines.append(f"independent re-check: max violation {s.max_violation:.2e} over "
                          f"{s.factors} factors, {s.variables} variables")
