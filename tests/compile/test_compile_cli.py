@@ -48,13 +48,11 @@ def test_emit_factors_with_plan(p1, capsys, tmp_path):
 
 
 def test_emit_asp(p1, capsys):
-    pytest.importorskip("gnppdsl.logic.encoding")
     assert main(["compile", p1, "--emit", "asp"]) == 0
     assert "#program step(t)." in capsys.readouterr().out
 
 
 def test_conflicts_are_forbidden_in_emitted_sas(p1, tmp_path, capsys):
-    pytest.importorskip("gnppdsl.logic.reformulation")
     conflicts = tmp_path / "c.txt"
     conflicts.write_text("<{parent(b1) = g}, {parent(b1) = r1}>\n")
     assert main(["compile", p1, "--emit", "sas", "--conflicts", str(conflicts)]) == 0
