@@ -41,8 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import gnppdsl                      # the public API: the command line solves through it
     from gnppdsl.errors import SolveFailure, UserError
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
@@ -55,8 +55,8 @@ def run(args: argparse.Namespace) -> int:
     for opt, value in (("--json", args.json), ("--db", args.db)):
         if value is not None and not Path(value).resolve().parent.is_dir():
             raise UserError(f"{opt} {value}: directory {Path(value).resolve().parent} does not exist")
-    compiled = load_and_compile(args.paths)
-    options = SolveOptions.from_settings(
+    compiled = gnppdsl.load_and_compile(args.paths)
+    options = gnppdsl.SolveOptions.from_settings(
         compiled.problem.settings,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     if args.verbose and not args.quiet:
         def progress(msg: str) -> None:
             emit(msg)
-    result = solve_compiled(compiled, options, progress=progress)
+    result = gnppdsl.solve_problem(compiled, options, progress=progress)
     if args.json:
         try:
             result.write_json(args.json)

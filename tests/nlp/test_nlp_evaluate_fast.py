@@ -6,7 +6,7 @@
    any row beyond rounding (relative 1e-10; the kernels differ, so not bit for bit), on real graph-NLPs of the bundled examples
    (planar blocks, the Lab with Panda arms and trajectories, a mobile manipulator) at random
    points.
-2. The casadi path (`casadi_expr.BodyCompiler`, quaternion algebra instead of rotation
+2. The casadi path (`body_compiler.BodyCompiler`, quaternion algebra instead of rotation
    matrices) on the planar and Lab graphs: the same rows up to rounding.
 
 Also: errors still come out as `EvaluationError`, and the memos never answer for other values,
@@ -42,7 +42,7 @@ def graph(name: str):
     if name not in _GRAPHS:
         path = EXAMPLES[name]
         from gnppdsl.logic.planner import IncrementalPlanner
-        from gnppdsl.solve.loop import load_and_compile
+        from gnppdsl.solve.compiled import load_and_compile
 
         c = load_and_compile(str(path))
         res = IncrementalPlanner(c.task).next_plan(max_horizon=8)
@@ -114,7 +114,7 @@ def test_rows_are_those_of_the_tree_walk(name):
 @pytest.mark.parametrize("name", ["planar_p3", "lab1"])
 def test_rows_agree_with_the_casadi_path(name):
     """An independent implementation (quaternion algebra, casadi geometry callbacks)."""
-    from gnppdsl.nlp.casadi_expr import BodyCompiler
+    from gnppdsl.nlp.body_compiler import BodyCompiler
 
     c, factors, variables, guess = graph(name)
     comp = BodyCompiler(c.geometry)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from gnppdsl.solve.loop import load_and_compile
+from gnppdsl.solve.compiled import load_and_compile
 
 from gnppdsl.compile.semantics import parse_plan, plan_states
 from gnppdsl.nlp.evaluate import max_violation
