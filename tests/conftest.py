@@ -16,9 +16,10 @@ import pytest
 # The external tools a test may be skipped for (none is a dependency of the package itself):
 # Fast Downward (up-fast-downward, test extra; its binary may fail to build on a platform), a C
 # or C++ compiler (the JIT kernels, the native distance library), the `false` program (a
-# failing-compiler stand-in), a Chromium-type browser (the viewer's page test).
-ALLOWED_SKIP = re.compile(r"Fast Downward|C\+\+ compiler|C compiler|`false` program|chromium|browser",
-                          re.IGNORECASE)
+# failing-compiler stand-in), a Chromium-type browser (the viewer's page test), ray and
+# matplotlib (optional packages of `gnpp bench --workers` / `--plot`).
+ALLOWED_SKIP = re.compile(r"Fast Downward|C\+\+ compiler|C compiler|`false` program|chromium|browser"
+                          r"|\bray\b|matplotlib", re.IGNORECASE)
 
 
 def _skip_reason(report) -> str:

@@ -93,7 +93,7 @@ def test_render_writes_one_png_per_keyframe_and_world_states_follow_the_referenc
 
     from gnppdsl.compile.semantics import parse_plan, plan_states
     from gnppdsl.solve.keyframes import world_states
-    from gnppdsl.solve.loop import load_and_compile
+    from gnppdsl import load_and_compile
 
     problem = PLANAR / "p3_occupied.pntc"
     out = tmp_path / "frames"

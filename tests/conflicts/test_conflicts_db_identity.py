@@ -52,7 +52,7 @@ def _hits(r: dict) -> int:
 
 
 def _identity(workdir: Path, problem: str, seed: str) -> dict:
-    code = ("import json, sys; from gnppdsl.solve.loop import load_and_compile; "
+    code = ("import json, sys; from gnppdsl import load_and_compile; "
             "c = load_and_compile(sys.argv[1]); "
             "print(json.dumps({'fp': c.fingerprint, 'keys': {o: c.object_key(o) for o in sorted(c.problem.objects)}}))")
     p = subprocess.run([sys.executable, "-c", code, str(workdir / problem)], env=_env(PYTHONHASHSEED=seed),

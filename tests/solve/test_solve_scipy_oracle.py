@@ -9,7 +9,7 @@ from pathlib import Path
 from scipy_oracle import scipy_feasible
 
 from gnppdsl.compile.semantics import parse_plan, plan_states
-from gnppdsl.solve.loop import load_and_compile
+from gnppdsl import load_and_compile
 
 P3 = Path(__file__).resolve().parents[2] / "examples" / "planar" / "p3_occupied.pntc"
 
