@@ -75,9 +75,54 @@ def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | N
 
 
 def _known(factors) -> set:
-    """(step, waypoint, {a, b}) of the pair factors already in a graph (repeat rounds)."""
-    return {(f.step, dict(f.bindings).get("w"), frozenset((dict(f.bindings)["a"], dict(f.bindings)["b"])))
-            for f in factors if f.rule == "avoid"}
+    """(step, waypoint, {a, b}) of every signed distance some factor of the graph already
+    constrains: the pair factors of earlier rounds and the domain's own templates (a waypoint
+    of a template read as `path(r)[k]`: "k"; a keyframe: None). Why: the near pairs of a
+    solution are mostly those the templates hold at their margins (lab5: 300 of them), and a
+    second row on the same pair adds NLP work and nothing else."""
+    from gnppdsl.ir.expr import Call, Num, Obj, Str
+
+    def body_name(e) -> str | None:
+        if isinstance(e, Obj):
+            return e.name
+        if isinstance(e, Call) and e.fn == "link" and isinstance(e.args[0], Obj) and isinstance(e.args[1], Str):
+            return f"{e.args[0].name}/{e.args[1].value}"
+        return None
+
+    def waypoints(e, out: set) -> set:
+        if isinstance(e, Call):
+            if e.fn == "waypoint" and isinstance(e.args[1], Num):
+                out.add(int(e.args[1].value))
+            for x in e.args:
+                waypoints(x, out)
+        for x in getattr(e, "items", ()):
+            waypoints(x, out)
+        return out
+
+    def distances(e):
+        if isinstance(e, Call):
+            if e.fn in ("sdist", "sdist2") and len(e.args) == 4:
+                yield e
+            for x in e.args:
+                yield from distances(x)
+
+    known = set()
+    for f in factors:
+        if f.rule == "avoid":
+            b = dict(f.bindings)
+            known.add((f.step, b.get("w"), frozenset((b["a"], b["b"]))))
+            continue
+        if "collision" not in f.tags:
+            continue
+        for c in f.body:
+            for d in distances(c.lhs):
+                a, b = body_name(d.args[0]), body_name(d.args[2])
+                if a is None or b is None:
+                    continue
+                ks = waypoints(d.args[1], set()) | waypoints(d.args[3], set())
+                w = f"{ks.pop():g}" if len(ks) == 1 else None
+                known.add((f.step, w, frozenset((a, b))))
+    return known
 
 
 def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: Any,
