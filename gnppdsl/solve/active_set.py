@@ -61,16 +61,17 @@ def _parents(result: Any, step: int) -> dict[str, str]:
     return {o: p for var, o, p in _FACT.findall(result.steps[step].state) if var == "parent"}
 
 
-def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | None, str, str]]:
-    """(step, waypoint, body a, body b) of every covered pair the verification found closer than
-    margin + near (`verify`), except resting and grasp contacts (an object with its parent)."""
+def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | None, str, str, float]]:
+    """(step, waypoint, body a, body b, distance) of every covered pair the verification found
+    closer than margin + near (`verify`), except resting and grasp contacts (an object with its
+    parent)."""
     out = []
     owner = lambda x: x.split("/", 1)[0]       # noqa: E731
-    for step, wp, a, b, _ in report.near:
+    for step, wp, a, b, d in report.near:
         parents = _parents(result, step)
         if parents.get(a) == owner(b) or parents.get(b) == owner(a):
             continue
-        out.append((step, wp, a, b))
+        out.append((step, wp, a, b, d))
     return out
 
 
@@ -132,10 +133,13 @@ def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: A
     plan = result.extras["plan"]
     known = _known(graph.factor_instances)
     new = []
-    for step, wp, a, b in near_pairs(result, report):
+    for step, wp, a, b, d in near_pairs(result, report):
         key = (step, None if wp is None else f"{wp:g}", frozenset((a, b)))
         if key in known:
             continue
+        if wp is not None and not float(wp).is_integer() and d >= settings.margin - 1e-4 and \
+                any((step, f"{k:g}", key[2]) in known for k in (wp - 0.5, wp + 0.5)):
+            continue    # near, not violated, between waypoints whose rows already hold the pair
         known.add(key)
         f = pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp)
         if f is not None:
