@@ -78,6 +78,8 @@ class Failure:
 
     def __str__(self) -> str:
         what = self.kind.replace("_", " ")
+        if self.step is None:                 # the plan / goal: the validator's message says it
+            return self.detail
         if self.kind == "collision":
             return f"{self.where}: collision {self.bodies[0]} <-> {self.bodies[1]}: {self.distance:+.4f}"
         return f"{self.where}: {what} {self.detail}".rstrip()
