@@ -80,6 +80,9 @@ class Failure:
         what = self.kind.replace("_", " ")
         if self.step is None:                 # the plan / goal: the validator's message says it
             return self.detail
+        if self.kind == "boundary":
+            return (f"path s{self.step}->s{self.step + 1}: {self.bodies[0]} waypoint {int(self.waypoint)} "
+                    f"is not the keyframe configuration")
         if self.kind == "collision":
             return f"{self.where}: collision {self.bodies[0]} <-> {self.bodies[1]}: {self.distance:+.4f}"
         return f"{self.where}: {what} {self.detail}".rstrip()
