@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gnppdsl.solve.loop import SolveOptions, solve_compiled
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 from solve_checks import check_solution
 
 
@@ -65,7 +66,7 @@ def test_gnpp_bench_compiles_templates_for_every_run(monkeypatch):
 def test_the_shared_template_compiler_is_rebuilt_once_the_queued_kernels_are_ready():
     from solve_toy import occupied_problem
 
-    from gnppdsl.nlp.casadi_expr import BodyCompiler
+    from gnppdsl.nlp.body_compiler import BodyCompiler
 
     class Kernels:                                   # what body_compiler asks a KernelCache
         native = staticmethod(lambda f: f)
