@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_order_argument(parser)
     add_jit_argument(parser)
     add_curvature_argument(parser)
-    parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
+    parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve, counted from the start of the process (loading and grounding included)")
     parser.add_argument("--seed", type=int, default=None, help="random seed of the NLP starts")
     parser.add_argument("--db", default=None, metavar="PATH",
                         help="persist the database of solved subgraphs in this SQLite file "
@@ -57,9 +57,12 @@ def run(args: argparse.Namespace) -> int:
     for opt, value in (("--json", args.json), ("--db", args.db)):
         if value is not None and not Path(value).resolve().parent.is_dir():
             raise UserError(f"{opt} {value}: directory {Path(value).resolve().parent} does not exist")
+    from gnppdsl.solve.options import process_start
+
+    started, cpu_started = process_start()      # --time-limit counts loading and grounding
     compiled = load_and_compile(args.paths)
     options = SolveOptions.from_settings(
-        compiled.problem.settings,
+        compiled.problem.settings, started=started, cpu_started=cpu_started,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
         order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,

@@ -56,6 +56,12 @@ class SolveOptions:
                                      # verdict gets the second opinion of `recheck` when it ends the
                                      # time search, the restarts when it is the conflict (see
                                      # LAZY_MAX_FACTORS for why)
+    started: float | None = None     # time.perf_counter() when this solve began, loading and
+                                     # grounding included: the time limit (and total_time) counts
+                                     # from there. `gnpp solve`: the process start; solve_problem
+                                     # on a path or Problem: before loading; None: when the loop
+                                     # starts (solve_compiled on a problem compiled earlier)
+    cpu_started: float | None = None  # time.process_time() at that moment (cpu_time counts from it)
     certify: bool = True             # gnpp: the lazy search decides a subgraph of a cheap graph
                                      # that failed from one start at that graph's convergence
                                      # point when it certifies it (no NLP), and confirms it with
@@ -91,6 +97,36 @@ class SolveOptions:
         if self.database and "g" not in switches:
             switches += "g"
         return replace(self, switches=switches if self.algorithm != "oneway" else "")
+
+
+def process_start() -> tuple[float, float]:
+    """(time.perf_counter(), time.process_time()) readings of this process's start: the
+    moment `gnpp solve`'s time limit counts from, so that loading, grounding and imports are
+    inside it. The wall reading comes from the process's age (Linux: /proc/self/stat start
+    time against /proc/uptime); elsewhere from the first import of this module."""
+    import os
+    import time
+
+    now = time.perf_counter()
+    age = now - _IMPORTED
+    try:
+        with open("/proc/self/stat") as fh:
+            start_ticks = float(fh.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as fh:
+            uptime = float(fh.read().split()[0])
+        age = max(age, uptime - start_ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        pass
+    return now - age, 0.0
+
+
+def _import_time() -> float:
+    import time
+
+    return time.perf_counter()
+
+
+_IMPORTED = _import_time()
 
 
 @contextmanager

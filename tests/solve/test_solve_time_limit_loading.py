@@ -1,0 +1,75 @@
+"""The time limit counts loading and grounding (`SolveOptions.started`): `gnpp solve` from the
+process start, `solve_problem` on a path from before loading; `solve_compiled` on a problem
+compiled earlier from the loop's start. No timing is asserted: the tests check where the clock
+starts (the order of events) and that a limit already spent ends the solve before any plan."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import gnppdsl.solve.loop as loop
+from gnppdsl.cli.main import main
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.options import SolveOptions, process_start
+from gnppdsl.solve.result import TIME_LIMIT
+
+P1 = str(Path(__file__).resolve().parents[2] / "examples/planar/p1_one_block.pntc")
+
+
+def test_a_limit_spent_before_the_loop_ends_the_solve_without_a_plan():
+    compiled = load_and_compile(P1)
+    long_ago = time.perf_counter() - 1000.0
+    res = loop.solve_compiled(compiled, SolveOptions(time_limit=30, started=long_ago))
+    assert res.status == TIME_LIMIT and res.stats.plans == 0 and res.stats.nlp_solves == 0
+    assert res.stats.total_time >= 1000.0          # the clock started at `started`
+    fresh = loop.solve_compiled(compiled, SolveOptions(time_limit=30))
+    assert fresh.solved and fresh.stats.total_time < 1000.0
+
+
+def test_solve_problem_on_a_path_starts_the_clock_before_loading(monkeypatch):
+    seen = {}
+    real_load, real_solve = loop.load_and_compile, loop.solve_compiled
+
+    def load(paths):
+        seen["load"] = time.perf_counter()
+        return real_load(paths)
+
+    def solve(compiled, options, progress=None):
+        seen["options"] = options
+        return real_solve(compiled, options, progress)
+
+    monkeypatch.setattr(loop, "load_and_compile", load)
+    monkeypatch.setattr(loop, "solve_compiled", solve)
+    assert loop.solve_problem(P1).solved
+    assert seen["options"].started is not None and seen["options"].started <= seen["load"]
+    compiled = real_load(P1)
+    loop.solve_problem(compiled)
+    assert seen["options"].started is None           # compiled earlier: the loop's own start
+
+
+def test_gnpp_solve_counts_from_the_process_start(monkeypatch, capsys):
+    test_began = time.perf_counter()
+    seen = {}
+    real_solve = loop.solve_compiled
+    import gnppdsl.solve.compiled as compiled_mod
+
+    real_load = compiled_mod.load_and_compile
+
+    def load(paths):
+        seen["load"] = time.perf_counter()
+        return real_load(paths)
+
+    def solve(compiled, options, progress=None):
+        seen["options"] = options
+        return real_solve(compiled, options, progress)
+
+    monkeypatch.setattr(compiled_mod, "load_and_compile", load)
+    monkeypatch.setattr(loop, "solve_compiled", solve)
+    assert main(["solve", P1, "--quiet"]) == 0
+    opts = seen["options"]
+    assert opts.started is not None and opts.started <= seen["load"]
+    assert opts.cpu_started == 0.0                   # the process's CPU time since its start
+    # the (pytest) process started before this test, and so does the solve's clock
+    assert opts.started < test_began
+    assert abs(process_start()[0] - opts.started) < 0.05     # /proc start time: 10 ms ticks
+    assert "solved" in capsys.readouterr().out
