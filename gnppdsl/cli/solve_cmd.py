@@ -41,10 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import gnppdsl                      # the public API: the command line solves through it
     from gnppdsl.errors import SolveFailure, UserError
-    from gnppdsl.solve.compiled import load_and_compile
-    from gnppdsl.solve.loop import solve_compiled
-    from gnppdsl.solve.options import SolveOptions
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
@@ -60,8 +58,8 @@ def run(args: argparse.Namespace) -> int:
     from gnppdsl.solve.options import process_start
 
     started, cpu_started = process_start()      # --time-limit counts loading and grounding
-    compiled = load_and_compile(args.paths)
-    options = SolveOptions.from_settings(
+    compiled = gnppdsl.load_and_compile(args.paths)
+    options = gnppdsl.SolveOptions.from_settings(
         compiled.problem.settings, started=started, cpu_started=cpu_started,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
@@ -71,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     if args.verbose and not args.quiet:
         def progress(msg: str) -> None:
             emit(msg)
-    result = solve_compiled(compiled, options, progress=progress)
+    result = gnppdsl.solve_problem(compiled, options, progress=progress)
     if args.json:
         try:
             result.write_json(args.json)
