@@ -44,8 +44,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import time
+
+    # when the command began: `gnpp solve`'s time limit counts from it. As the program
+    # (argv from the command line) that is the process start, imports included; called from
+    # Python with arguments (tests, scripts), the call (the process may be much older).
+    began = (time.perf_counter(), time.process_time())
     parser = build_parser()
     args = parser.parse_args(argv)
+    args._began = began
+    if argv is None:
+        from gnppdsl.solve.options import process_start
+
+        args._began = process_start()
     if args.command is None:
         parser.print_help()
         return 2
