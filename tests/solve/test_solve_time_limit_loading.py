@@ -26,9 +26,11 @@ def test_a_limit_spent_before_the_loop_ends_the_solve_without_a_plan():
     assert fresh.solved and fresh.stats.total_time < 1000.0
 
 
-def test_solve_problem_on_a_path_starts_the_clock_before_loading(monkeypatch):
-    seen = {}
-    real_load, real_solve = loop.load_and_compile, loop.solve_compiled
+def spy(monkeypatch, load_owner) -> dict:
+    """Record when loading starts (`load_owner.load_and_compile`) and the options the solve
+    gets (`loop.solve_compiled`), calling the real functions."""
+    seen: dict = {}
+    real_load, real_solve = load_and_compile, loop.solve_compiled
 
     def load(paths):
         seen["load"] = time.perf_counter()
@@ -38,11 +40,16 @@ def test_solve_problem_on_a_path_starts_the_clock_before_loading(monkeypatch):
         seen["options"] = options
         return real_solve(compiled, options, progress)
 
-    monkeypatch.setattr(loop, "load_and_compile", load)
+    monkeypatch.setattr(load_owner, "load_and_compile", load)
     monkeypatch.setattr(loop, "solve_compiled", solve)
+    return seen
+
+
+def test_solve_problem_on_a_path_starts_the_clock_before_loading(monkeypatch):
+    seen = spy(monkeypatch, loop)
     assert loop.solve_problem(P1).solved
     assert seen["options"].started is not None and seen["options"].started <= seen["load"]
-    compiled = real_load(P1)
+    compiled = load_and_compile(P1)
     loop.solve_problem(compiled)
     assert seen["options"].started is None           # compiled earlier: the loop's own start
 
@@ -50,29 +57,17 @@ def test_solve_problem_on_a_path_starts_the_clock_before_loading(monkeypatch):
 def test_gnpp_solve_counts_from_the_command_start(monkeypatch, capsys):
     """Called from Python, `main([...])` counts from the call (this process is older than the
     command); run as the program (argv None) from the process start (`process_start`)."""
-    seen = {}
-    real_solve = loop.solve_compiled
     import gnppdsl
 
-    real_load = load_and_compile
-
-    def load(paths):
-        seen["load"] = time.perf_counter()
-        return real_load(paths)
-
-    def solve(compiled, options, progress=None):
-        seen["options"] = options
-        return real_solve(compiled, options, progress)
-
-    monkeypatch.setattr(gnppdsl, "load_and_compile", load)
-    monkeypatch.setattr(loop, "solve_compiled", solve)
+    seen = spy(monkeypatch, gnppdsl)
     called = (time.perf_counter(), time.process_time())
     assert main(["solve", P1, "--quiet"]) == 0
     opts = seen["options"]
     assert called[0] <= opts.started <= seen["load"]
     assert called[1] <= opts.cpu_started
     assert "solved" in capsys.readouterr().out
-    monkeypatch.setattr("sys.argv", ["gnpp", "solve", P1, "--quiet"])
+    # a limit longer than this (pytest) process's age, which the clock now includes
+    monkeypatch.setattr("sys.argv", ["gnpp", "solve", P1, "--quiet", "--time-limit", "1e6"])
     assert main() == 0
     opts = seen["options"]
     assert opts.started < called[0] and opts.cpu_started == 0.0       # the process start
