@@ -62,6 +62,8 @@ class SolveOptions:
                                      # on a path or Problem: before loading; None: when the loop
                                      # starts (solve_compiled on a problem compiled earlier)
     cpu_started: float | None = None  # time.process_time() at that moment (cpu_time counts from it)
+    optimise: bool = True            # minimise the plan's `minimize` terms from its feasible solution
+                                     # (`solve.optimal`); without terms nothing happens
     certify: bool = True             # gnpp: the lazy search decides a subgraph of a cheap graph
                                      # that failed from one start at that graph's convergence
                                      # point when it certifies it (no NLP), and confirms it with
@@ -74,7 +76,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature"):
+                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "optimise"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
