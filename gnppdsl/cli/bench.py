@@ -15,7 +15,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
+from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
+                                     add_order_argument, check_outputs, check_ranges)
 from gnppdsl.solve.result import algorithm_title   # light as well
 
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
@@ -150,13 +151,10 @@ def run(args: argparse.Namespace) -> int:
     from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
 
     specs = parse_algorithms(args.algorithms)
-    if args.seeds < 1:
-        raise UserError("--seeds must be >= 1")
-    if args.time_limit <= 0:
-        raise UserError("--time-limit must be positive")
-    if args.csv and not Path(args.csv).resolve().parent.is_dir():
-        # say so before minutes of benchmarking, not after
-        raise UserError(f"--csv {args.csv}: directory {Path(args.csv).resolve().parent} does not exist")
+    if not 1 <= args.seeds <= 10_000:
+        raise UserError("--seeds must be from 1 to 10,000")
+    check_ranges(args)
+    check_outputs(args)          # say so before minutes of benchmarking, not after
     files = find_problems(args.paths)
     rows: list[dict] = []
     names: list[str] = []
@@ -219,13 +217,12 @@ def run(args: argparse.Namespace) -> int:
     if skipped:
         print(f"skipped (load errors): {', '.join(skipped)}")
     if args.csv:
-        try:
-            with open(args.csv, "w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
-                w.writeheader()
-                for r in rows:
-                    w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_FIELDS})
-        except OSError as exc:
-            raise UserError(f"--csv {args.csv}: {exc.strerror or exc}") from None
+        from gnppdsl.outputs import atomic_open
+
+        with atomic_open(args.csv, "--csv", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_FIELDS})
         print(f"wrote {len(rows)} runs to {args.csv}")
     return 2 if skipped else 0

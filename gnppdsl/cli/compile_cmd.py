@@ -128,9 +128,14 @@ def _factors(problem, task, plan) -> str:
 
     text = ""
     if plan is not None:
+        from gnppdsl.inputs import InputError, is_regular_file, read_text
+
         path = Path(plan)
-        if path.is_file():
-            text = path.read_text()
+        if is_regular_file(path):
+            try:
+                text = read_text(path)
+            except InputError as exc:
+                raise UserError(f"--plan {plan}: {exc.message}") from None
         elif "(" not in plan and plan.strip() and (path.suffix or "/" in plan):
             raise UserError(f"--plan {plan}: no such file")
         else:
@@ -162,20 +167,16 @@ def _robot_dims(problem):
 
 
 def _write(files, out_dir) -> None:
-    from gnppdsl.errors import UserError
-
     if out_dir is None:
         for k, (name, text) in enumerate(files):
             if len(files) > 1:
                 sys.stdout.write(f"{';' if name.endswith('.pddl') else '#'} ---- {name} ----\n")
             sys.stdout.write(text)
         return
-    d = Path(out_dir)
-    try:
-        d.mkdir(parents=True, exist_ok=True)
-        for name, text in files:
-            (d / name).write_text(text)
-    except OSError as exc:
-        raise UserError(f"{out_dir}: cannot write: {exc.strerror or exc}") from None
+    from gnppdsl.outputs import output_dir, write_atomic
+
+    d = output_dir(out_dir, "-o")
+    for name, text in files:
+        write_atomic(d / name, text, "-o")
     for name, _ in files:
         print(d / name)

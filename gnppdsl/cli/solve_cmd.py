@@ -10,7 +10,8 @@ import argparse
 import os
 import sys
 
-from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
+from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
+                                     add_order_argument, check_inputs, check_outputs, check_ranges)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -46,15 +47,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
-    if args.time_limit is not None and args.time_limit <= 0:
-        raise UserError("--time-limit must be positive")
-    if args.max_horizon is not None and args.max_horizon < 0:
-        raise UserError("--max-horizon must be >= 0")
-    from pathlib import Path
-
-    for opt, value in (("--json", args.json), ("--db", args.db)):
-        if value is not None and not Path(value).resolve().parent.is_dir():
-            raise UserError(f"{opt} {value}: directory {Path(value).resolve().parent} does not exist")
+    check_ranges(args)
+    check_outputs(args)
+    check_inputs(args.paths)
     compiled = load_and_compile(args.paths)
     options = SolveOptions.from_settings(
         compiled.problem.settings,
@@ -68,10 +63,7 @@ def run(args: argparse.Namespace) -> int:
             emit(msg)
     result = solve_compiled(compiled, options, progress=progress)
     if args.json:
-        try:
-            result.write_json(args.json)
-        except OSError as exc:
-            raise UserError(f"--json {args.json}: {exc.strerror or exc}") from None
+        result.write_json(args.json)
     if args.quiet:
         emit(f"{result.problem}: {'solved' if result.solved else result.status}"
              + (f", N = {result.stats.N}" if result.solved else f": {result.message}"))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from gnppdsl.ir.model import SOLVER_ORDERS
+from gnppdsl.ir.model import SOLVER_ORDERS, setting_problem
 
 
 def add_order_argument(parser: argparse.ArgumentParser) -> None:
@@ -30,3 +30,58 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "(--no-distance-curvature: they enter linearised, cheaper iterations on "
                              "robot domains). Default: the problem's solver setting "
                              "`distance_curvature`, else on")
+
+
+def check_ranges(args: argparse.Namespace) -> None:
+    """Range-check the numeric options `gnpp solve` and `gnpp bench` share, with the limits of
+    the `solver { }` block (`gnppdsl.ir.model.SETTING_RANGES`): NaN, infinity, a negative
+    time limit or a tolerance of 1e3 are errors naming the option, exit 2."""
+    from gnppdsl.errors import UserError
+
+    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+        value = getattr(args, key, None)
+        if value is None:
+            continue
+        problem = setting_problem(key, value)
+        if problem is not None:
+            option = "--" + key.replace("_", "-")
+            raise UserError(f"{option} {value}: {problem}")
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse the output paths before any work (`gnppdsl.outputs`): a missing directory, a
+    symbolic link or a non-regular file at `--json` / `--csv` / `--db`, a link at `--render`."""
+    import os
+    import stat
+
+    from gnppdsl.errors import UserError
+    from gnppdsl.outputs import check_target
+
+    for option in ("json", "csv", "db"):
+        value = getattr(args, option, None)
+        if value is not None:
+            check_target(value, f"--{option}")
+    render = getattr(args, "render", None)
+    if render is not None:
+        try:
+            mode = os.lstat(render).st_mode
+        except FileNotFoundError:
+            return
+        except (OSError, ValueError) as exc:
+            raise UserError(f"--render {render}: {getattr(exc, 'strerror', None) or exc}") from None
+        if stat.S_ISLNK(mode) or not stat.S_ISDIR(mode):
+            raise UserError(f"--render {render}: not a directory (symbolic links are not followed)")
+
+
+def check_inputs(paths) -> None:
+    """The problem (and domain) files named on the command line: regular .pntc files of
+    bounded size (`gnppdsl.inputs`), refused before anything reads them."""
+    from gnppdsl.errors import UserError
+    from gnppdsl.inputs import SOURCE_SUFFIXES, InputError, read_bytes, check_suffix
+
+    for p in paths:
+        try:
+            check_suffix(p, SOURCE_SUFFIXES, "problem or domain")
+            read_bytes(p)
+        except InputError as exc:
+            raise UserError(f"{p}: {exc.message}") from None

@@ -10,12 +10,12 @@ Planar scenes get only the top view.
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from gnppdsl.errors import UserError
 
 
 @dataclass
@@ -120,19 +120,22 @@ def _draw_view(img, x0, view: _View, polys: list[_Poly], font, movable: frozense
 
 
 def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, size: int = 560,
-                     prefix: str = "keyframe", titles: list[str] | None = None) -> list[str]:
+                     prefix: str = "keyframe", titles: list[str] | None = None,
+                     what: str = "--render") -> list[str]:
     """Write one PNG per state (`{prefix}_{i:03d}.png`) into `out_dir`; return their paths.
 
     `models`: a `GeometryContext`, a dict robot name -> `RobotModel`, or None (load from the scene).
     `states`: dicts entity -> value as in `gnppdsl.geometry.verify` (world poses, joint coords).
+    Files are written atomically, never through a symbolic link (`gnppdsl.outputs`); the
+    keyframes of an earlier render into the same directory that this one does not rewrite
+    are removed (`_forget_old_keyframes`). `what` names the option in error messages.
     """
     from PIL import Image, ImageDraw, ImageFont
     from gnppdsl.geometry.context import GeometryContext
+    from gnppdsl.outputs import atomic_open, output_dir
+
     ctx = models if isinstance(models, GeometryContext) else GeometryContext(scene, models)
-    try:
-        os.makedirs(out_dir, exist_ok=True)
-    except OSError as e:
-        raise UserError(f"cannot create render directory {out_dir}: {e}") from None
+    directory = output_dir(out_dir, what)
     all_polys = [_polys(ctx, s) for s in states]
     pts = np.vstack([p.verts for ps in all_polys for p in ps]) if any(all_polys) else np.zeros((1, 3))
     # frame what is there in any keyframe (the scene workspace is often much larger)
@@ -156,9 +159,47 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
         for k in range(1, len(views)):
             d.line([(k * size, 0), (k * size, size + 20)], fill=(180, 180, 180), width=1)
         path = os.path.join(out_dir, f"{prefix}_{i:03d}.png")
-        img.convert("RGB").save(path)
+        with atomic_open(path, what, binary=True) as fh:
+            img.convert("RGB").save(fh, format="PNG")
         paths.append(path)
+    _forget_old_keyframes(directory, prefix, paths, what)
     return paths
+
+
+MANIFEST = ".gnpp-render.json"
+
+
+def _forget_old_keyframes(directory, prefix: str, paths: list[str], what: str) -> None:
+    """Remove the keyframes an earlier render into `directory` wrote and this one did not
+    (a 6-step plan after a 10-step one), and only those: the names come from the manifest
+    the earlier render left (`.gnpp-render.json`), so a file the user put there, even one
+    called keyframe_009.png, is never touched; a symbolic link listed there is left alone."""
+    import json
+    import stat
+
+    from gnppdsl.inputs import InputError, read_text
+    from gnppdsl.outputs import write_atomic
+
+    manifest = directory / MANIFEST
+    old: list[str] = []
+    try:
+        data = json.loads(read_text(manifest))
+        if isinstance(data, dict) and isinstance(data.get(prefix), list):
+            old = [n for n in data[prefix] if isinstance(n, str)]
+    except (InputError, ValueError):
+        data = {}
+    new = [os.path.basename(p) for p in paths]
+    for name in set(old) - set(new):
+        if not re.fullmatch(rf"{re.escape(prefix)}_\d{{3,}}\.png", name):
+            continue                          # only names this function writes
+        try:
+            if stat.S_ISREG(os.lstat(directory / name).st_mode):
+                os.unlink(directory / name)
+        except OSError:
+            pass
+    data = data if isinstance(data, dict) else {}
+    data[prefix] = sorted(new)
+    write_atomic(manifest, json.dumps(data, indent=1) + "\n", what)
 
 
 def front_polys_for_depth(polys: list[_Poly]) -> list[_Poly]:

@@ -149,12 +149,12 @@ class Result:
             "stats": _finite(asdict(self.stats)),
         }
 
-    def write_json(self, path: str | Path) -> None:
-        """Write atomically (temp file + rename) so a reader never sees half a file."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_json(), indent=2) + "\n")
-        tmp.replace(path)
+    def write_json(self, path: str | Path, what: str = "--json") -> None:
+        """Write atomically and never through a symbolic link (`gnppdsl.outputs`), so a
+        reader never sees half a file; errors name the option (`what`)."""
+        from gnppdsl.outputs import write_atomic
+
+        write_atomic(path, json.dumps(self.to_json(), indent=2) + "\n", what)
 
     def summary(self, max_conflicts: int = 20) -> str:
         s = self.stats
