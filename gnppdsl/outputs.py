@@ -31,9 +31,10 @@ def _reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
 
-def check_target(path: str | Path, what: str) -> Path:
-    """`path` as a place to write a file: its directory exists, and the name is free or a
-    regular file (not a symbolic link, directory, FIFO or device). Nothing is created."""
+def check_target(path: str | Path, what: str, parent_may_be_missing: bool = False) -> Path:
+    """`path` as a place to write a file: its directory exists (unless
+    `parent_may_be_missing`: the caller creates it), and the name is free or a regular file
+    (not a symbolic link, directory, FIFO or device). Nothing is created."""
     p = Path(os.fspath(path))
     if "\0" in str(p):
         raise UserError(f"{what}: the path contains a NUL byte")
@@ -42,6 +43,8 @@ def check_target(path: str | Path, what: str) -> Path:
         if not stat.S_ISDIR(os.stat(parent).st_mode):
             raise UserError(f"{what} {p}: {parent} is not a directory")
     except FileNotFoundError:
+        if parent_may_be_missing:
+            return p
         raise UserError(f"{what} {p}: directory {parent} does not exist") from None
     except OSError as exc:
         raise UserError(f"{what} {p}: {_reason(exc)}") from None

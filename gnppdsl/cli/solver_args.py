@@ -48,19 +48,21 @@ def check_ranges(args: argparse.Namespace) -> None:
             raise UserError(f"{option} {value}: {problem}")
 
 
-def check_outputs(args: argparse.Namespace) -> None:
-    """Refuse the output paths before any work (`gnppdsl.outputs`): a missing directory, a
-    symbolic link or a non-regular file at `--json` / `--csv` / `--db`, a link at `--render`."""
+def check_outputs(args: argparse.Namespace, files: tuple[str, ...] = ("json", "db"),
+                  parents_created: bool = False) -> None:
+    """Refuse the output paths before any work (`gnppdsl.outputs`): a missing directory
+    (unless the command creates it), a symbolic link or a non-regular file at the options
+    `files` (`--json`, `--db`, ...), a link or a file at `--render`."""
     import os
     import stat
 
     from gnppdsl.errors import UserError
     from gnppdsl.outputs import check_target
 
-    for option in ("json", "csv", "db"):
+    for option in files:
         value = getattr(args, option, None)
         if value is not None:
-            check_target(value, f"--{option}")
+            check_target(value, f"--{option}", parents_created)
     render = getattr(args, "render", None)
     if render is not None:
         try:
