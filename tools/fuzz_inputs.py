@@ -184,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", type=int, default=1_000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--timeout", type=float, default=10.0)
+    ap.add_argument("--workers", type=int, default=1, help="worker processes (the cases are the same)")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="gnpp-fuzz-cache-")   # keep ~/.cache clean
@@ -198,19 +199,12 @@ def main(argv: list[str] | None = None) -> int:
         p.start()
         return p, a
 
-    proc, conn = start()
-    for i, (group, job) in enumerate(_cases(args.pntc, args.scenes, args.seed)):
+    def record(group: str, job, res) -> None:
         c = counts[group]
-        c["cases"] += 1
-        conn.send(job)
-        if not conn.poll(args.timeout):
-            proc.kill()
-            proc.join()
-            proc, conn = start()
+        if res is None:
             c["hang"] += 1
             kinds[f"hang: {job[0]}/{job[1]}"] += 1
-            continue
-        res = conn.recv()
+            return
         if res["uncaught"]:
             c["uncaught"] += 1
             kinds[res["uncaught"]] += 1
@@ -219,10 +213,41 @@ def main(argv: list[str] | None = None) -> int:
             kinds["unlocated: " + re.sub(r"/tmp/\S+/", "", res.get("example", ""))[:80]] += 1
         if res["size"] > OVERSIZED:
             c["oversized"] += 1
-        if not args.quiet and (i + 1) % 500 == 0:
-            print(f"{i + 1} cases, {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
-    conn.send(None)
-    proc.join(5)
+
+    workers = [start() for _ in range(max(1, args.workers))]
+    busy: dict[int, tuple] = {}              # worker index -> (group, job, started)
+    cases = _cases(args.pntc, args.scenes, args.seed)
+    done = 0
+    pending = True
+    while pending or busy:
+        for k in range(len(workers)):
+            if k not in busy and pending:
+                try:
+                    group, job = next(cases)
+                except StopIteration:
+                    pending = False
+                    break
+                counts[group]["cases"] += 1
+                workers[k][1].send(job)
+                busy[k] = (group, job, time.time())
+        for k, (group, job, started) in list(busy.items()):
+            proc, conn = workers[k]
+            if conn.poll(0.01):
+                record(group, job, conn.recv())
+            elif time.time() - started > args.timeout:
+                proc.kill()
+                proc.join()
+                workers[k] = start()
+                record(group, job, None)
+            else:
+                continue
+            del busy[k]
+            done += 1
+            if not args.quiet and done % 500 == 0:
+                print(f"{done} cases, {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
+    for proc, conn in workers:
+        conn.send(None)
+        proc.join(5)
     shutil.rmtree(os.environ["XDG_CACHE_HOME"], ignore_errors=True)
     for group, c in counts.items():
         print(f"{group:6s}: {c['cases']} cases, {c['uncaught']} uncaught exceptions, {c['hang']} hangs "
