@@ -9,9 +9,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
+from dataclasses import replace
 
 from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
                                      add_order_argument, check_inputs, check_outputs, check_ranges)
+from gnppdsl.solve.result import INTERRUPTED   # light (dataclasses only)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,27 +44,68 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verbose", action="store_true", help="print each plan and conflict as found")
 
 
+#: seconds the hard alarm (`gnppdsl.interrupt.arm_time_limit`) waits after the loop's own
+#: deadline: the loop normally stops first and returns its partial result; the alarm is what
+#: ends a run stuck where no deadline check reaches, so the limit holds within a second
+ALARM_GRACE = 0.5
+
+
 def run(args: argparse.Namespace) -> int:
-    from gnppdsl.errors import SolveFailure, UserError
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+    from gnppdsl import interrupt
+    from gnppdsl.errors import UserError
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
     check_ranges(args)
     check_outputs(args)
     check_inputs(args.paths)
-    compiled = load_and_compile(args.paths)
-    options = SolveOptions.from_settings(
-        compiled.problem.settings,
-        algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
-        seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
-        order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
-    )
-    progress = None
-    if args.verbose and not args.quiet:
-        def progress(msg: str) -> None:
-            emit(msg)
-    result = solve_compiled(compiled, options, progress=progress)
+    with interrupt.handlers():
+        return _run(args, time.monotonic())
+
+
+def _run(args: argparse.Namespace, start: float) -> int:
+    """Load, compile and solve under one time limit (loading and grounding count: the loop
+    gets what is left); SIGINT / SIGTERM / the alarm end it with the partial result."""
+    from gnppdsl import interrupt
+    from gnppdsl.errors import SolveFailure
+    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+
+    if args.time_limit is not None:
+        interrupt.arm_time_limit(args.time_limit + ALARM_GRACE)
+    compiled = None
+    try:
+        with interrupt.interruptible():
+            compiled = load_and_compile(args.paths)
+            options = SolveOptions.from_settings(
+                compiled.problem.settings,
+                algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
+                seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
+                order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
+            )
+            limit = options.time_limit
+            left = limit - (time.monotonic() - start)
+            if left <= 0:
+                raise interrupt.Interrupted("time_limit")
+            interrupt.arm_time_limit(left + ALARM_GRACE)
+            options = replace(options, time_limit=left)
+            progress = None
+            if args.verbose and not args.quiet:
+                def progress(msg: str) -> None:
+                    emit(msg)
+            result = solve_compiled(compiled, options, progress=progress)
+            result.time_limit = limit
+    except interrupt.Interrupted as stop:
+        result = _stopped(compiled, args, stop, time.monotonic() - start)
+    except Exception:
+        # a stop request that casadi turned into its own exception on the way out
+        if interrupt.pending() is None:
+            raise
+        result = _stopped(compiled, args, interrupt.Interrupted(interrupt.pending()),
+                          time.monotonic() - start)
+    stop_reason = interrupt.pending()
+    if stop_reason is not None and result.status not in (INTERRUPTED, "time_limit") and not result.solved:
+        result.status = INTERRUPTED if stop_reason != "time_limit" else "time_limit"
+    result = result.checked()
     if args.json:
         result.write_json(args.json)
     if args.quiet:
@@ -71,9 +115,32 @@ def run(args: argparse.Namespace) -> int:
         emit(result.summary())
     if args.render and result.solved:
         _render(compiled, result, args.render)
+    if result.status == INTERRUPTED:
+        reason = stop_reason or "SIGINT"
+        print(f"gnpp: {result.problem} {interrupt.Interrupted(reason).describe()}"
+              + (f"; partial result in {args.json}" if args.json else ""), file=sys.stderr)
+        return interrupt.EXIT_CODES.get(reason, 130)
     if not result.solved:
         raise SolveFailure(f"gnpp: {result.problem} not solved: {result.message}")
     return 0
+
+
+def _stopped(compiled, args: argparse.Namespace, stop, elapsed: float):
+    """The result of a run stopped before the loop could return one (while loading, or
+    before the loop catches `Interrupted` itself): status interrupted / time_limit, what
+    is known so far."""
+    from pathlib import Path
+
+    from gnppdsl.solve.result import Result, Stats
+
+    status = "time_limit" if stop.reason == "time_limit" else INTERRUPTED
+    name = compiled.name if compiled is not None else Path(args.paths[-1]).stem
+    domain = compiled.domain_name if compiled is not None else ""
+    where = "while solving" if compiled is not None else "while loading"
+    return Result(problem=name, domain=domain, algorithm=args.algorithm or "gnpp",
+                  switches=args.switches or "", seed=args.seed or 0, status=status,
+                  message=f"{stop.describe()} {where} after {elapsed:.1f} s",
+                  stats=Stats(total_time=elapsed), time_limit=args.time_limit)
 
 
 def _render(compiled, result, directory: str) -> None:

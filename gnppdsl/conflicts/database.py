@@ -207,8 +207,10 @@ class SubgraphDatabase:
         self.stats.loaded = len(rows)
 
     def _persist(self, entry: Entry) -> None:
-        if self._conn is None:
-            return
+        from gnppdsl import interrupt
+
+        if self._conn is None or interrupt.pending():
+            return        # a verdict reached after SIGINT/SIGTERM may rest on a cut-short run
         conflict = json.dumps([[list(f) for f in p] for p in entry.conflict]) if entry.conflict is not None else None
         with self._conn:   # one transaction per record: all or nothing
             self._conn.execute(

@@ -20,6 +20,10 @@ SOLVED = "solved"
 NO_PLAN = "no_plan"                 # the logic planner proved no (further) plan exists up to the horizon
 TIME_LIMIT = "time_limit"
 SOLVER_FAILURE = "solver_failure"   # a plan's graph-NLP was feasible in every check but the full solve failed
+INTERRUPTED = "interrupted"         # SIGINT / SIGTERM (`gnppdsl.interrupt`): the partial result
+#: largest violation a "solved" result may have at the independent re-check (`Result.checked`),
+#: whatever tolerance was asked for: the tolerance option is capped at 1e-2 too
+SANE_VIOLATION = 1e-2
 STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE)
 
 
@@ -125,6 +129,18 @@ class Result:
     @property
     def solved(self) -> bool:
         return self.status == SOLVED
+
+    def checked(self, bound: float = SANE_VIOLATION) -> "Result":
+        """This result, or a copy with status solver_failure when it claims "solved" but its
+        independent re-check (`stats.max_violation`) exceeds `bound` or is not a number."""
+        v = self.stats.max_violation
+        if not self.solved or v is None or (math.isfinite(v) and v <= bound):
+            return self
+        from dataclasses import replace
+
+        return replace(self, status=SOLVER_FAILURE,
+                       message=f"the solution's constraint violation {v:.3g} exceeds {bound:g} at the "
+                               f"independent re-check; not reported as solved")
 
     @property
     def algorithm_name(self) -> str:
