@@ -64,8 +64,10 @@ def describe_os_error(exc: BaseException) -> str:
     return str(exc)
 
 
-def read_bytes(path: str | Path, max_bytes: int = MAX_INPUT_BYTES) -> bytes:
-    """The bytes of a regular file of at most `max_bytes`, else `InputError`."""
+def read_bytes(path: str | Path, max_bytes: int | None = None) -> bytes:
+    """The bytes of a regular file of at most `max_bytes` (default `MAX_INPUT_BYTES`), else
+    `InputError`."""
+    max_bytes = MAX_INPUT_BYTES if max_bytes is None else max_bytes
     p = os.fspath(path)
     try:
         fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0))
@@ -115,7 +117,7 @@ def check_suffix(path: str | Path, suffixes: tuple[str, ...], what: str) -> None
 
 
 def read_text(path: str | Path, suffixes: tuple[str, ...] | None = None, what: str = "file",
-              max_bytes: int = MAX_INPUT_BYTES) -> str:
+              max_bytes: int | None = None) -> str:
     """`check_suffix` (if `suffixes`), `read_bytes`, `decode_utf8`."""
     if suffixes is not None:
         check_suffix(path, suffixes, what)
