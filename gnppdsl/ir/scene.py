@@ -15,7 +15,7 @@ from typing import Any
 from gnppdsl.inputs import ROBOT_SUFFIXES
 from gnppdsl.ir.expr import Span
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
-from gnppdsl.lang.diagnostics import Reporter, did_you_mean
+from gnppdsl.lang.diagnostics import Reporter, did_you_mean, read_source
 
 TOP_KEYS = ("name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
 ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "base_joint", "ee", "locked",
@@ -573,21 +573,12 @@ def load_scene(path: str | Path, reporter: Reporter, ref: Span | None = None) ->
 def load_scene_with_spans(path: str | Path, reporter: Reporter, ref: Span | None = None
                           ) -> tuple[Scene | None, dict[tuple[str, str], Span]]:
     """`load_scene` plus the positions of extra attribute keys, {(entity, key): span}."""
-    from gnppdsl.inputs import SCENE_SUFFIXES, InputError, read_text
+    from gnppdsl.inputs import SCENE_SUFFIXES
 
     p = str(path)
-    try:
-        text = read_text(p, SCENE_SUFFIXES, "scene file")
-    except InputError as exc:
-        if exc.line is not None:           # invalid UTF-8: at its line and column
-            reporter.sources.add(p, exc.text or "")
-            reporter.error(Span(p, exc.line, exc.column or 1), exc.message, "unreadable-file")
-        elif exc.message == "no such file":
-            reporter.error(ref, f"scene file not found: {_short(p)}", "missing-file")
-        else:
-            reporter.error(ref, f"cannot read scene file {_short(p)}: {exc.message}", "unreadable-file")
+    text = read_source(reporter, p, ref, SCENE_SUFFIXES, "scene file")
+    if text is None:
         return None, {}
-    reporter.sources.add(p, text)
     loader = _Loader(p, reporter)
     return loader.load(text), loader.attr_spans
 

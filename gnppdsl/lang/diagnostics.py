@@ -185,6 +185,29 @@ class DiagnosticError(UserError):
         return f"{body}\n\n{n} error{'s' if n != 1 else ''}" if n else body
 
 
+def read_source(reporter: Reporter, path: str, ref: Span | None = None,
+                suffixes: tuple[str, ...] | None = None, what: str = "file") -> str | None:
+    """The text of a user file (`gnppdsl.inputs.read_text`: regular, bounded, by suffix), or
+    None with the reason reported: invalid UTF-8 at its line and column in the file (its
+    text kept for the echo), anything else at `ref`, where the file is named."""
+    from gnppdsl.inputs import InputError, read_text
+
+    try:
+        text = read_text(path, suffixes, what)
+    except InputError as exc:
+        shown = path if len(path) <= 80 else f"{path[:80]}... ({len(path):,} characters)"
+        if exc.line is not None:
+            reporter.sources.add(path, exc.text or "")
+            reporter.error(Span(path, exc.line, exc.column or 1), exc.message, "unreadable-file")
+        elif exc.message == "no such file":
+            reporter.error(ref, f"{what} not found: {shown}", "missing-file")
+        else:
+            reporter.error(ref, f"cannot read {what} {shown}: {exc.message}", "unreadable-file")
+        return None
+    reporter.sources.add(path, text)
+    return text
+
+
 def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
     """`did you mean 'grasp'?` for the closest candidate names, or None."""
     cands = sorted(set(c for c in candidates if c))

@@ -771,18 +771,8 @@ def _parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
 def parse_file(path: str | Path, reporter: Reporter, ref: Span | None = None) -> ast.FileAst | None:
     """Read and parse a file; unreadable files and syntax errors are reported, not raised.
     `ref` is where the file is named (a `use` line), the place to report a file not read."""
-    from gnppdsl.inputs import InputError, read_text
+    from gnppdsl.lang.diagnostics import read_source
 
     p = str(path)
-    try:
-        text = read_text(p)
-    except InputError as exc:
-        if exc.line is not None:           # invalid UTF-8: at its line and column
-            reporter.sources.add(p, exc.text or "")
-            reporter.error(Span(p, exc.line, exc.column or 1), exc.message, "unreadable-file")
-        elif exc.message == "no such file":
-            reporter.error(ref, f"file not found: {p}", "missing-file")
-        else:
-            reporter.error(ref, f"cannot read {p}: {exc.message}", "unreadable-file")
-        return None
-    return parse_text(text, p, reporter)
+    text = read_source(reporter, p, ref)
+    return parse_text(text, p, reporter) if text is not None else None
