@@ -13,7 +13,7 @@ import time
 from dataclasses import replace
 
 from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
-                                     add_order_argument, check_inputs, check_outputs, check_ranges)
+                                     add_order_argument, check_outputs, check_ranges)
 from gnppdsl.solve.result import INTERRUPTED   # light (dataclasses only)
 
 
@@ -58,7 +58,6 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
     check_ranges(args)
     check_outputs(args)
-    check_inputs(args.paths)
     with interrupt.handlers():
         return _run(args, time.monotonic())
 
@@ -66,17 +65,17 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, start: float) -> int:
     """Load, compile and solve under one time limit (loading and grounding count: the loop
     gets what is left); SIGINT / SIGTERM / the alarm end it with the partial result."""
+    import gnppdsl                      # the public API: the command line solves through it
     from gnppdsl import interrupt
     from gnppdsl.errors import SolveFailure
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
 
     if args.time_limit is not None:
         interrupt.arm_time_limit(args.time_limit + ALARM_GRACE)
     compiled = None
     try:
         with interrupt.interruptible():
-            compiled = load_and_compile(args.paths)
-            options = SolveOptions.from_settings(
+            compiled = gnppdsl.load_and_compile(args.paths)
+            options = gnppdsl.SolveOptions.from_settings(
                 compiled.problem.settings,
                 algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
                 seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
@@ -92,7 +91,7 @@ def _run(args: argparse.Namespace, start: float) -> int:
             if args.verbose and not args.quiet:
                 def progress(msg: str) -> None:
                     emit(msg)
-            result = solve_compiled(compiled, options, progress=progress)
+            result = gnppdsl.solve_problem(compiled, options, progress=progress)
             result.time_limit = limit
     except interrupt.Interrupted as stop:
         result = _stopped(compiled, args, stop, time.monotonic() - start)

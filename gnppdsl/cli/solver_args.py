@@ -74,16 +74,3 @@ def check_outputs(args: argparse.Namespace, files: tuple[str, ...] = ("json", "d
         if stat.S_ISLNK(mode) or not stat.S_ISDIR(mode):
             raise UserError(f"--render {render}: not a directory (symbolic links are not followed)")
 
-
-def check_inputs(paths) -> None:
-    """The problem (and domain) files named on the command line: regular .pntc files of
-    bounded size (`gnppdsl.inputs`), refused before anything reads them."""
-    from gnppdsl.errors import UserError
-    from gnppdsl.inputs import SOURCE_SUFFIXES, InputError, read_bytes, check_suffix
-
-    for p in paths:
-        try:
-            check_suffix(p, SOURCE_SUFFIXES, "problem or domain")
-            read_bytes(p)
-        except InputError as exc:
-            raise UserError(f"{p}: {exc.message}") from None
