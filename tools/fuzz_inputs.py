@@ -185,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--timeout", type=float, default=10.0)
     ap.add_argument("--workers", type=int, default=1, help="worker processes (the cases are the same)")
+    ap.add_argument("--max-seconds", type=float, default=0.0,
+                    help="stop starting cases after this long (0: run them all); the report counts the cases run")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="gnpp-fuzz-cache-")   # keep ~/.cache clean
@@ -220,6 +222,8 @@ def main(argv: list[str] | None = None) -> int:
     done = 0
     pending = True
     while pending or busy:
+        if pending and args.max_seconds and time.time() - t0 > args.max_seconds:
+            pending = False                  # report what was covered (the counts say how many)
         for k in range(len(workers)):
             if k not in busy and pending:
                 try:
