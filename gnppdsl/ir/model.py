@@ -470,7 +470,7 @@ SOLVER_FIELDS: dict[str, type] = {
 #: ended in "no plan"), and above 1e-2 a "solved" plan can be visibly wrong (`--tolerance 1e3`
 #: returned a violation of 0.5); a seed must fit numpy's 32-bit generator seed.
 SETTING_RANGES: dict[str, tuple[float, float]] = {
-    "tolerance": (1e-10, 1e-2), "time_limit": (1e-3, 1e7), "seed": (0, 2**32 - 1),
+    "tolerance": (1e-10, 1e-2), "time_limit": (1e-6, 1e7), "seed": (0, 2**32 - 1),
     "waypoints": (2, 10_000), "max_horizon": (1, 10_000), "max_iter": (1, 10_000_000),
 }
 
