@@ -410,6 +410,22 @@ class Relaxation:
     span: Span | None = field(**_SPAN)
 
 
+AVOID_CATEGORIES = ("robots", "objects", "scene")
+
+
+@dataclass(frozen=True)
+class Avoid:
+    """`avoid robots, objects, scene margin 0.01`: every pair of bodies of these categories
+    keeps `margin` at every keyframe, waypoint and segment midpoint (robot links: with each
+    robot's SRDF-filtered self pairs; objects: the movable objects; scene: static bodies and the
+    scene objects a problem does not declare). The engine enforces it by an active set over the
+    independent verification's pairs (`gnppdsl.solve.active_set`), no rule lists them."""
+
+    categories: tuple[str, ...]
+    margin: float = 0.0
+    span: Span | None = field(**_SPAN)
+
+
 SOLVER_ALGORITHMS = ("gnpp", "oneway", "rlgp")
 SOLVER_NLPS = ("ipopt", "sqpmethod")
 SOLVER_ORDERS = ("full_first", "relaxed_first", "staged")
@@ -438,6 +454,7 @@ class SolverSettings:
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
                 in SQP trajectory optimisers (see `gnppdsl.nlp.feasibility.SolverOptions`)
+    optimise    minimise the domain's `minimize` terms from the first feasible solution (true)
     """
 
     algorithm: str = "gnpp"
@@ -453,6 +470,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
+    optimise: bool = True
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -462,7 +480,7 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool, "distance_curvature": bool,
+    "order": str, "jit": bool, "distance_curvature": bool, "optimise": bool,
 }
 
 #: accepted ranges of the numeric solver settings and their command-line twins (inclusive).
@@ -605,6 +623,7 @@ class Domain:
     modules: dict[str, Module] = field(default_factory=dict)
     world_space: Space = Space("SE3", 7)
     span: Span | None = field(**_SPAN)
+    avoid: Avoid | None = None       # the `avoid` declaration (None: every category, margin 0)
 
     # ---- the type hierarchy --------------------------------------------------------------
     def ancestors(self, type_name: str) -> tuple[str, ...]:

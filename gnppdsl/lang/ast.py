@@ -209,7 +209,15 @@ class ForallAst:
     span: Span | None = field(**_S)
 
 
-StmtAst = Union[ConstraintAst, ForallAst]
+@dataclass(frozen=True)
+class MinimizeAst:
+    """`minimize e`: a scalar term of the objective (paper 002's optimal TAMP)."""
+
+    expr: ExprAst
+    span: Span | None = field(**_S)
+
+
+StmtAst = Union[ConstraintAst, ForallAst, MinimizeAst]
 
 
 # ------------------------------------------------------------------ declarations
@@ -381,6 +389,15 @@ class RelaxationAst:
 
 
 @dataclass(frozen=True)
+class AvoidDecl:
+    """`avoid robots, objects, scene margin 0.01`: the categories whose bodies keep clear."""
+
+    categories: tuple[Name, ...]
+    margin: Any = None               # an expression (folded to a number), None: 0
+    span: Span | None = field(**_S)
+
+
+@dataclass(frozen=True)
 class RelaxationsDecl:
     items: tuple[RelaxationAst, ...]
     span: Span | None = field(**_S)
@@ -459,7 +476,7 @@ class GoalDecl:
 Decl = Union[UseDecl, TypeDecl, ConstDecl, ConstantsDecl, StateDecl, DerivedDecl, ActionDecl,
              ContinuousDecl, FrameDecl, TemplateDecl, SceneAttrDecl, PrimitiveDecl, RuleDecl,
              RelaxationsDecl, SolverDecl, ReachabilityDecl, SceneRef, ObjectsDecl, InitDecl,
-             GoalDecl]
+             GoalDecl, AvoidDecl]
 
 
 @dataclass(frozen=True)

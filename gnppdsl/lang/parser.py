@@ -30,7 +30,7 @@ MAX_VECTOR_DIMENSION = 10_000
 # words that start a declaration (used for error recovery and keyword hints)
 DECL_KEYWORDS = (
     "domain", "problem", "module", "use", "type", "const", "constants", "state", "derived",
-    "action", "continuous", "traj", "frame", "template", "rule", "relaxations", "solver",
+    "action", "continuous", "traj", "frame", "template", "rule", "relaxations", "solver", "avoid",
     "reachability", "scene", "primitive", "objects", "init", "goal",
 )
 _DECL_LINE = re.compile(r"^\s*(%s)\b" % "|".join(DECL_KEYWORDS))
@@ -371,6 +371,9 @@ def _make_transformer(path: str, problems: list):
             ops = tuple(x for x in c if isinstance(x, ast.Name))
             return ast.ConstraintAst(operands, ops, sp(m))
 
+        def minimize(self, m, c):
+            return ast.MinimizeAst(c[0], sp(m))
+
         def forall(self, m, c):
             return ast.ForallAst(name(c[0]), c[1], c[2], tuple(c[3:]), sp(m))
 
@@ -473,6 +476,11 @@ def _make_transformer(path: str, problems: list):
 
         def relaxations_decl(self, m, c):
             return ast.RelaxationsDecl(tuple(c), sp(m))
+
+        def avoid_decl(self, m, c):
+            names = tuple(name(t) for t in c if isinstance(t, Token))
+            margin = next((x for x in c if not isinstance(x, Token)), None)
+            return ast.AvoidDecl(names, margin, sp(m))
 
         def setting(self, m, c):
             return ast.Setting(name(c[0]), c[1], sp(m))

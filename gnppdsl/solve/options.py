@@ -56,11 +56,17 @@ class SolveOptions:
                                      # verdict gets the second opinion of `recheck` when it ends the
                                      # time search, the restarts when it is the conflict (see
                                      # LAZY_MAX_FACTORS for why)
+    optimise: bool = True            # minimise the plan's `minimize` terms from its feasible solution
+                                     # (`solve.optimal`); without terms nothing happens
     certify: bool = True             # gnpp: the lazy search decides a subgraph of a cheap graph
                                      # that failed from one start at that graph's convergence
                                      # point when it certifies it (no NLP), and confirms it with
                                      # the graph's restarts (`FeasibilityCheck.certify`); planar p5
                                      # 5 -> 3 NLPs, p4 10 -> 6
+    active_set: bool = True          # a solution the independent verification rejects gets the
+                                     # pairs it found near as factors and is solved again
+                                     # (`gnppdsl.solve.coverage`); False: it ends the solve as
+                                     # verification_failed (every solution is verified either way)
 
     @staticmethod
     def from_settings(settings: SolverSettings | None = None, **overrides: Any) -> "SolveOptions":
@@ -68,7 +74,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature"):
+                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "optimise"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
