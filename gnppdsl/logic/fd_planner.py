@@ -42,8 +42,8 @@ from gnppdsl.logic.validate import plan_cost, validate_plan
 
 DEFAULT_SEARCH = "astar(ff(axioms=approximate_negative), bound={bound})"
 # FD's exit codes (driver/returncodes.py): 11 = proven unsolvable, 12 = search ended without a
-# plan (bounded or incomplete search); 22-24 = out of memory / time
-_UNSOLVABLE = (11, 12)
+# plan (incomplete search), 13 = unsolvable within the bound; 22-24 = out of memory / time
+_UNSOLVABLE = (11, 12, 13)
 
 
 def downward_binary() -> Path | None:

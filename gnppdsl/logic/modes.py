@@ -26,6 +26,7 @@ import time
 from typing import Iterable, Sequence
 
 from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.errors import UserError
 from gnppdsl.ir.model import SOLVER_PLANNERS
 from gnppdsl.logic.fd_planner import FastDownwardPlanner, downward_binary
 from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, IncrementalPlanner, Plan, PlannerStats, PlanResult, Status
@@ -131,10 +132,13 @@ class AutoPlanner:
 
 def make_planner(task: SASTask, mode: str = "auto", max_horizon: int = DEFAULT_MAX_HORIZON):
     """The planner of a logic mode (see the module docstring). `mode` is a `SOLVER_PLANNERS` name;
-    `fd` without Fast Downward installed raises RuntimeError with an installation hint."""
+    `fd` without Fast Downward installed is a user error naming the setting and the package."""
     if mode == "sequential":
         return IncrementalPlanner(task, max_horizon=max_horizon)
     if mode == "fd":
+        if downward_binary() is None:
+            raise UserError("planner fd: Fast Downward is not installed (pip install up-fast-downward), "
+                            "or choose planner = sequential / auto")
         return FastDownwardPlanner(task, max_horizon=max_horizon)
     if mode == "auto":
         return AutoPlanner(task, max_horizon=max_horizon)
