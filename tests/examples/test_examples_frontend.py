@@ -101,7 +101,7 @@ def test_problem_loads(d, name, e):
 
 def _factors(path: Path, plan: str):
     from gnppdsl.compile.semantics import parse_plan, plan_states
-    from gnppdsl.solve.loop import compile_problem
+    from gnppdsl.solve.compiled import compile_problem
 
     c = compile_problem(ir.load_problem(path))
     states = plan_states(c.task, parse_plan(c.task, plan))
