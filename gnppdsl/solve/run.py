@@ -30,7 +30,7 @@ class Run(ReachabilityCosts):
     a plan's graph (`plan_evaluation.PlanEvaluation`) and the loops (`loop.Loop`) derive from it."""
 
     def __init__(self, compiled: Compiled, options: SolveOptions, progress: Progress | None):
-        from gnppdsl.logic.planner import IncrementalPlanner
+        from gnppdsl.logic.modes import make_planner
 
         self.compiled, self.options, self.progress = compiled, options, progress
         self.task = compiled.task
@@ -44,7 +44,7 @@ class Run(ReachabilityCosts):
         if options.algorithm == "rlgp":
             self.task = self.with_reachability_costs(self.task)
         t0 = time.perf_counter()
-        self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
+        self.planner = make_planner(self.task, options.planner, max_horizon=options.max_horizon)
         self.stats.logic_time += time.perf_counter() - t0
         from gnppdsl.nlp import jit
 
@@ -102,6 +102,11 @@ class Run(ReachabilityCosts):
             res = self.planner.shortest_plan(time_limit=max(0.0, self.remaining()),
                                              minimize_cost=self.options.algorithm == "rlgp")
         self.stats.logic_time += time.perf_counter() - t0
+        if res.plan is not None and self.stats.first_plan_time is None:
+            self.stats.first_plan_time = time.perf_counter() - self.start
+            self.stats.N0_shortest = res.plan.shortest
+            if not res.plan.shortest:
+                self.say(f"logic: {res.message} (N0 = {len(res.plan)} is not proven shortest)")
         return res
     sweeping_restarts = 8                 # random starts behind a conflict without facts
 
