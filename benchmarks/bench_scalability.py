@@ -8,8 +8,8 @@ Per problem:
 - N0 proven: the exact (sequential) planner's first plan length, or `>=h` when its proof of the
   horizons below h ran out of time; expected.yaml gives N0 by construction;
 - end to end (`--solve`): `gnpp solve` with the chosen planner (default auto): status, N, NLPs,
-  total CPU (this process + children: FD and the C compiler), logic seconds and share of the
-  wall time, each solution checked by the independent pinocchio + coal verification
+  total CPU (this process + children: FD and the C compiler), logic CPU seconds (FD included)
+  and their share of the total CPU, each solution checked by the independent pinocchio + coal verification
   (`gnppdsl.solve.verify_solution`, as benchmarks/bench_lab.py); a failed check is a failure;
 - the paper's CPU seconds beside it. Figs. 8-9 of paper 000 are images; the text gives no
   numbers. Read off the figures (approximate, `~`): stacking 32 blocks about 500 s; the
@@ -81,7 +81,7 @@ def solve_one(path: Path, mode: str, seed: int, time_limit: float) -> dict:
         ok, why = rep.ok, "" if rep.ok else "verification: " + "; ".join(rep.failures[:2])
     s = r.stats
     return dict(ok=ok, status=r.status, why=why if not ok else "", cpu=s.cpu_time, wall=wall,
-                logic=s.logic_time, share=s.logic_time / max(s.total_time, 1e-9), nlp=s.nlp_solves,
+                logic=s.logic_cpu, share=s.logic_cpu / max(s.cpu_time, 1e-9), nlp=s.nlp_solves,
                 n0=s.N0, n=s.N if r.status == "solved" else None, first=s.first_plan_time,
                 conflicts=s.conflicts)
 
@@ -96,25 +96,28 @@ def main(argv=None) -> int:
     ap.add_argument("--time-limit", type=float, default=300.0)
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--plot", default=None, metavar="PNG")
+    ap.add_argument("--dir", type=Path, default=FAMILY,
+                    help="problem directory with an expected.yaml (default examples/scalability; "
+                         "examples/lab gives the logic share on the Lab problems)")
     args = ap.parse_args(argv)
 
     from gnppdsl.compile.task import build_task
     from gnppdsl.ir import load_problem
 
-    expected = yaml.safe_load((FAMILY / "expected.yaml").read_text())["problems"]
+    expected = yaml.safe_load((args.dir / "expected.yaml").read_text())["problems"]
     names = args.problems or list(expected)
     unknown = [n for n in names if n not in expected]
     if unknown:
-        print(f"bench_scalability: unknown problems {unknown} (see {FAMILY / 'expected.yaml'})", file=sys.stderr)
+        print(f"bench_scalability: unknown problems {unknown} (see {args.dir / 'expected.yaml'})", file=sys.stderr)
         return 2
     rows = []
     for name in names:
         spec = expected[name]
-        task = build_task(load_problem(FAMILY / spec["file"]))
+        task = build_task(load_problem(args.dir / spec["file"]))
         logic = {"sequential": first_plan(task, "sequential", args.logic_limit)}
         for mode in args.modes:
             logic[mode] = first_plan(task, mode, args.logic_limit)
-        runs = [solve_one(FAMILY / spec["file"], args.solve_mode, seed, args.time_limit)
+        runs = [solve_one(args.dir / spec["file"], args.solve_mode, seed, args.time_limit)
                 for seed in range(args.seeds)] if args.solve else []
         rows.append((name, spec, logic, runs))
         print(f"  {name}: first plan " + ", ".join(
@@ -130,8 +133,9 @@ def main(argv=None) -> int:
 
 
 def _fmt_first(entry, limit: float) -> str:
+    """CPU s to the first plan; `>c` = none within the (wall) limit after c CPU s."""
     cpu, n, _, _ = entry
-    return f">{limit:g}" if n is None else f"{cpu:.2f}"
+    return f">{cpu:.1f}" if n is None else f"{cpu:.2f}"
 
 
 def _table(rows, args) -> None:
@@ -149,7 +153,7 @@ def _table(rows, args) -> None:
     for name, spec, logic, runs in rows:
         cpu, n, shortest, h = logic["sequential"]
         proven = str(n) if n is not None and shortest else f">={h}"
-        line = (f"{name:11} {spec['objects']:>3} {spec['n0']:>6} {proven:>9} "
+        line = (f"{name:11} {spec.get('objects', '-'):>3} {spec['n0']:>6} {proven:>9} "
                 + " ".join(f"{_fmt_first(logic[m], args.logic_limit):>10}" for m in modes))
         if args.solve:
             good = [r for r in runs if r["ok"]]

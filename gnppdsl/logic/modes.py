@@ -31,7 +31,7 @@ from gnppdsl.ir.model import SOLVER_PLANNERS
 from gnppdsl.logic.fd_planner import FastDownwardPlanner, downward_binary
 from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, IncrementalPlanner, Plan, PlannerStats, PlanResult, Status
 
-# clingo time per `shortest_plan` call before `auto` hands the search to Fast Downward. The Lab
+# clingo CPU seconds per `shortest_plan` call before `auto` hands the search to Fast Downward. The Lab
 # examples' calls stay below it (lab5 with 71 conflicts: horizons 0..15 in 1.4 s); the
 # scalability families cross it at the first horizon that needs a real proof (clutter_1:
 # horizons 0..10 in 1.9 s, horizon 11 alone 10 s).
@@ -101,23 +101,36 @@ class AutoPlanner:
 
     def shortest_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
                       minimize_cost: bool = False) -> PlanResult:
-        """Sequential while a call's proofs stay under `switch_after` s, then Fast Downward."""
+        """Sequential while a call's proofs stay under `switch_after` CPU s, then Fast Downward."""
         self._calls += 1
         if minimize_cost or not self._fd_available:
             return self.sequential.shortest_plan(max_horizon, time_limit, minimize_cost)
         if self.fd is not None:
             return self.fd.shortest_plan(max_horizon, time_limit)
-        start = time.perf_counter()
-        budget = self.switch_after if time_limit is None else min(self.switch_after, time_limit)
-        res = self.sequential.shortest_plan(max_horizon, budget)
-        if res.status is not Status.TIMEOUT or (time_limit is not None and budget >= time_limit):
-            return res
+        start, cpu0 = time.perf_counter(), time.process_time()
+        res: PlanResult | None = None
+        while True:
+            # the budget is CPU seconds (the same switch on a loaded machine as on an idle one);
+            # clingo's limit is wall time, so it gets the CPU budget left as a wall-time slice
+            # (wall >= CPU: a slice never overspends) and resumes at the horizon it reached,
+            # keeping its learned nogoods
+            left = self.switch_after - (time.process_time() - cpu0)
+            wall_left = None if time_limit is None else time_limit - (time.perf_counter() - start)
+            if left <= 0.01 or (wall_left is not None and wall_left <= 0):
+                break
+            res = self.sequential.shortest_plan(max_horizon, left if wall_left is None else min(left, wall_left),
+                                                minimize_cost)
+            if res.status is not Status.TIMEOUT:
+                res.time = time.perf_counter() - start
+                return res
+        if time_limit is not None and time.perf_counter() - start >= time_limit:
+            return res or PlanResult(Status.TIMEOUT, None, 0, time.perf_counter() - start,
+                                     f"time limit of {time_limit:g} s reached for task {self.task.name}")
         self._switch()
         rest = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - start))
         out = self.fd.shortest_plan(max_horizon, rest)
         out.time = time.perf_counter() - start
-        out.message += (f" (Fast Downward; clingo had proven no plan shorter than {res.horizon} "
-                        f"in {self.switch_after:g} s)")
+        out.message += f" (Fast Downward, after {self.switch_after:g} s CPU of clingo without a plan)"
         return out
 
     def _switch(self) -> None:

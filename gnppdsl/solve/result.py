@@ -77,6 +77,7 @@ class Stats:
     ipopt_runs: int = 0               # solver runs behind them (multi-starts, polish re-solves)
     nlp_time: float = 0.0             # seconds inside the NLP solver
     logic_time: float = 0.0           # seconds in the logic planner (incl. adding conflicts)
+    logic_cpu: float = 0.0            # CPU seconds of the same (Fast Downward's child processes included)
     factory_time: float = 0.0         # seconds building graph-NLPs
     reach_time: float = 0.0           # seconds building / querying reachability graphs (rlgp)
     total_time: float = 0.0           # wall clock

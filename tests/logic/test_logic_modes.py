@@ -166,3 +166,31 @@ def test_scalability_family_n0_exact_and_fd(name, n0):
     fd = make_planner(task, "fd", max_horizon=20).shortest_plan(time_limit=60)
     assert fd.found and len(fd.plan) >= n0
     naive_check(task, fd.plan.operators)
+
+
+FAMILY = ["stack_8", "stack_16", "stack_32", "clutter_1", "clutter_6", "lab5_paper"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", FAMILY)
+def test_scalability_families_first_plan(name):
+    """auto and fd give a plan of the family's N0 length or more, valid under the naive SAS+
+    semantics; with a GNPP-style conflict (the first step's changed facts) the next plan avoids it."""
+    require_fd()
+    import yaml
+
+    from gnppdsl.compile.sas import PartialState
+
+    n0 = yaml.safe_load((EXAMPLES / "scalability" / "expected.yaml").read_text())["problems"][name]["n0"]
+    task = _family_task(name)
+    for mode in ("auto", "fd"):
+        planner = make_planner(task, mode, max_horizon=n0 + 8)
+        res = planner.shortest_plan(time_limit=120)
+        assert res.found and len(res.plan) >= n0, res.message
+        naive_check(task, res.plan.operators)
+        s0, s1 = res.plan.states[0], res.plan.states[1]
+        conflict = (PartialState(tuple((v, s1[v]) for v in range(len(s1)) if s1[v] != s0[v])),)
+        planner.add_conflict(conflict)
+        again = planner.shortest_plan(time_limit=120)
+        assert again.found, again.message
+        naive_check(task, again.plan.operators, [conflict])
