@@ -140,7 +140,7 @@ def _fmt_first(entry, limit: float) -> str:
 
 def _table(rows, args) -> None:
     modes = ["sequential", *args.modes]
-    print(f"Scalability (paper 000, Appendix D) on examples/scalability; CPU seconds (this process + "
+    print(f"Scalability (paper 000, Appendix D) on {args.dir.name}; CPU seconds (this process + "
           f"Fast Downward / cc children); logic limit {args.logic_limit:g} s"
           + (f"; end to end with planner {args.solve_mode}, {args.seeds} seed(s), time limit "
              f"{args.time_limit:g} s, solutions verified with pinocchio + coal" if args.solve else ""))
@@ -182,10 +182,10 @@ def _plot(rows, path: str) -> None:
         if not mine:
             continue
         xs = [m[0] for m in mine]
-        for mode, style in (("sequential", "x:"), ("auto", "o-"), ("fd", "s--")):
+        for mode, style, colour in (("sequential", "x:", "C0"), ("auto", "o-", "C1"), ("fd", "s--", "C2")):
             pts = [(x, lg[mode][0]) for x, lg, _ in mine if mode in lg and lg[mode][1] is not None]
             if pts:
-                ax.plot(*zip(*pts), style, label=f"first logical plan, {mode}")
+                ax.plot(*zip(*pts), style, color=colour, label=f"first logical plan, {mode}")
         ends = [(x, sum(r["cpu"] for r in runs if r["ok"]) / max(1, sum(r["ok"] for r in runs)))
                 for x, _, runs in mine if any(r["ok"] for r in runs)]
         if ends:
