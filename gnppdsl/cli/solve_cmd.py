@@ -40,13 +40,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tolerance", type=float, default=None, help="constraint violation tolerance")
     parser.add_argument("--quiet", action="store_true", help="print only the final status line")
     parser.add_argument("--verbose", action="store_true", help="print each plan and conflict as found")
+    parser.add_argument("--no-optimise", dest="optimise", action="store_false", default=None,
+                        help="return the first feasible solution without minimising the domain's "
+                             "`minimize` terms")
 
 
 def run(args: argparse.Namespace) -> int:
+    import gnppdsl                      # the public API: the command line solves through it
     from gnppdsl.errors import SolveFailure, UserError
-    from gnppdsl.solve.compiled import load_and_compile
-    from gnppdsl.solve.loop import solve_compiled
-    from gnppdsl.solve.options import SolveOptions
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
@@ -59,18 +60,19 @@ def run(args: argparse.Namespace) -> int:
     for opt, value in (("--json", args.json), ("--db", args.db)):
         if value is not None and not Path(value).resolve().parent.is_dir():
             raise UserError(f"{opt} {value}: directory {Path(value).resolve().parent} does not exist")
-    compiled = load_and_compile(args.paths)
-    options = SolveOptions.from_settings(
+    compiled = gnppdsl.load_and_compile(args.paths)
+    options = gnppdsl.SolveOptions.from_settings(
         compiled.problem.settings,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
         order=args.order, jit=args.jit, distance_curvature=args.distance_curvature, planner=args.planner,
+        optimise=args.optimise,
     )
     progress = None
     if args.verbose and not args.quiet:
         def progress(msg: str) -> None:
             emit(msg)
-    result = solve_compiled(compiled, options, progress=progress)
+    result = gnppdsl.solve_problem(compiled, options, progress=progress)
     if args.json:
         try:
             result.write_json(args.json)

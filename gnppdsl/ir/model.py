@@ -444,6 +444,7 @@ class SolverSettings:
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
                 in SQP trajectory optimisers (see `gnppdsl.nlp.feasibility.SolverOptions`)
+    optimise    minimise the domain's `minimize` terms from the first feasible solution (true)
     """
 
     algorithm: str = "gnpp"
@@ -460,6 +461,7 @@ class SolverSettings:
     jit: bool | None = None
     distance_curvature: bool = True
     planner: str = "auto"
+    optimise: bool = True
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -469,7 +471,7 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool, "distance_curvature": bool, "planner": str,
+    "order": str, "jit": bool, "distance_curvature": bool, "planner": str, "optimise": bool,
 }
 
 

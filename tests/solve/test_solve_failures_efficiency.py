@@ -79,10 +79,13 @@ def test_solver_failure_exit_1_with_reason(capsys, monkeypatch):
 
 
 def test_bench_csv_directory_checked_before_running(capsys, tmp_path):
+    """A CSV that cannot be written is refused before any run (a missing directory is created:
+    tests/cli/test_cli_bench_sweep.py; here the would-be directory is a file)."""
+    (tmp_path / "afile").write_text("x")
     code = main(["bench", str(PLANAR / "p1_one_block.pntc"), "--seeds", "1", "--csv",
-                 str(tmp_path / "missing" / "x.csv")])
+                 str(tmp_path / "afile" / "x.csv")])
     captured = capsys.readouterr()
-    assert code == 2 and "does not exist" in _one_line(captured.err)
+    assert code == 2 and "--csv" in _one_line(captured.err)
     assert "GNPP" not in captured.out            # nothing was run
 
 
