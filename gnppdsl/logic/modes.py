@@ -36,6 +36,7 @@ from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, IncrementalPlanner, Plan,
 # scalability families cross it at the first horizon that needs a real proof (clutter_1:
 # horizons 0..10 in 1.9 s, horizon 11 alone 10 s).
 SWITCH_AFTER = 2.0
+WALL_FACTOR = 4.0      # ... but at most 8 s of wall time (a machine shared by many processes)
 
 
 class AutoPlanner:
@@ -108,18 +109,20 @@ class AutoPlanner:
         if self.fd is not None:
             return self.fd.shortest_plan(max_horizon, time_limit)
         start, cpu0 = time.perf_counter(), time.process_time()
+        # the budget is CPU seconds (the same switch on a loaded machine as on an idle one), capped
+        # in wall time at WALL_FACTOR x the budget and at half the call's time limit, so that Fast
+        # Downward always gets its turn; clingo's limit is wall time, so it runs in slices of what
+        # is left (wall >= CPU: a slice never overspends) and resumes at the horizon it reached,
+        # keeping its learned nogoods
+        wall_cap = WALL_FACTOR * self.switch_after
+        if time_limit is not None:
+            wall_cap = min(wall_cap, time_limit / 2)
         res: PlanResult | None = None
         while True:
-            # the budget is CPU seconds (the same switch on a loaded machine as on an idle one);
-            # clingo's limit is wall time, so it gets the CPU budget left as a wall-time slice
-            # (wall >= CPU: a slice never overspends) and resumes at the horizon it reached,
-            # keeping its learned nogoods
-            left = self.switch_after - (time.process_time() - cpu0)
-            wall_left = None if time_limit is None else time_limit - (time.perf_counter() - start)
-            if left <= 0.01 or (wall_left is not None and wall_left <= 0):
+            left = min(self.switch_after - (time.process_time() - cpu0), wall_cap - (time.perf_counter() - start))
+            if left <= 0.01:
                 break
-            res = self.sequential.shortest_plan(max_horizon, left if wall_left is None else min(left, wall_left),
-                                                minimize_cost)
+            res = self.sequential.shortest_plan(max_horizon, left, minimize_cost)
             if res.status is not Status.TIMEOUT:
                 res.time = time.perf_counter() - start
                 return res
