@@ -21,7 +21,7 @@ demo: setup
 	$(BIN)/gnpp solve examples/planar/p3_occupied.pntc
 
 test: setup
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 bench: setup
 	$(BIN)/gnpp bench examples/planar

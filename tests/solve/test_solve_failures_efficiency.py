@@ -13,10 +13,6 @@ from gnppdsl.cli.main import main
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 
-ir = pytest.importorskip("gnppdsl.ir")
-if not hasattr(ir, "load_problem"):
-    pytest.skip("gnppdsl.ir.load_problem is not available yet", allow_module_level=True)
-
 from gnppdsl.solve import loop  # noqa: E402
 from gnppdsl.solve.compiled import load_and_compile  # noqa: E402
 from gnppdsl.solve.deadline import deadline_solver, TimeUp  # noqa: E402
