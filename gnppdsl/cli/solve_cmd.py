@@ -13,7 +13,8 @@ import time
 from dataclasses import replace
 
 from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
-                                     add_order_argument, check_outputs, check_ranges)
+                                     add_order_argument, add_planner_argument, check_outputs,
+                                     check_ranges)
 from gnppdsl.solve.result import INTERRUPTED   # light (dataclasses only)
 
 
@@ -29,6 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
     add_order_argument(parser)
+    add_planner_argument(parser)
     add_jit_argument(parser)
     add_curvature_argument(parser)
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
@@ -87,7 +89,7 @@ def _run(args: argparse.Namespace, start: float) -> int:
                 compiled.problem.settings,
                 algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
                 seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
-                order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
+                order=args.order, jit=args.jit, distance_curvature=args.distance_curvature, planner=args.planner,
                 active_set=args.active_set, optimise=args.optimise,
             )
             limit = options.time_limit
