@@ -19,6 +19,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "compile": ("gnppdsl.cli.compile_cmd", "compile a problem to SAS+, PDDL, ASP or graph-NLP factors"),
     "solve": ("gnppdsl.cli.solve_cmd", "solve a problem with the Graph-NLP Planner"),
     "bench": ("gnppdsl.cli.bench", "run algorithms x problems x seeds and print a table"),
+    "export": ("gnppdsl.cli.export_cmd", "write a solved result's joint trajectories as CSV"),
 }
 
 

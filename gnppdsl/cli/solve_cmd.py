@@ -10,6 +10,7 @@ import argparse
 import os
 import sys
 
+from gnppdsl.cli.outputs import make_parent
 from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
 
 
@@ -43,6 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from gnppdsl.errors import SolveFailure, UserError
     from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+    from gnppdsl.solve.motion import annotate_motion
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
@@ -53,8 +55,8 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     for opt, value in (("--json", args.json), ("--db", args.db)):
-        if value is not None and not Path(value).resolve().parent.is_dir():
-            raise UserError(f"{opt} {value}: directory {Path(value).resolve().parent} does not exist")
+        if value is not None:
+            make_parent(opt, value)
     compiled = load_and_compile(args.paths)
     options = SolveOptions.from_settings(
         compiled.problem.settings,
@@ -67,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
         def progress(msg: str) -> None:
             emit(msg)
     result = solve_compiled(compiled, options, progress=progress)
+    annotate_motion(result, compiled)
     if args.json:
         try:
             result.write_json(args.json)

@@ -13,42 +13,29 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from gnppdsl.compile.factors import FactorInstance
-from gnppdsl.compile.sas import PartialState
-from gnppdsl.ir.expr import CVar, Constraint, Num
+from gnppdsl.ir.expr import CVar
 
 
 def world_states(compiled: Any, states: Sequence[Sequence[int]], values: dict) -> list[dict[str, Any]]:
     """[{entity: world pose or joint coordinates}] for s_0 .. s_n."""
-    from gnppdsl.nlp.evaluate import constraint_rows
+    from gnppdsl.solve.motion import world_poses
 
-    factory = compiled.factory
     problem = compiled.problem
     scene = problem.scene
     by_key_step = {(v.key, v.step): v for v in values}
+
+    def value_of(key: str, step: int):
+        v = by_key_step.get((key, step))
+        return None if v is None else values[v]
+
     out: list[dict[str, Any]] = []
     for i in range(len(states)):
-        st: dict[str, Any] = {}
-        for obj in problem.objects:
-            if scene is None or scene.entity(obj) is None:
-                continue
-            frame = problem.domain.frame_of(problem.objects[obj])
-            if obj in scene.robots and scene.robots[obj].kind == "urdf":
-                q = _robot_coords(frame, obj, i, by_key_step, values)
+        st: dict[str, Any] = dict(world_poses(compiled, states, i, value_of))
+        for robot, spec in (scene.robots.items() if scene is not None else ()):
+            if spec.kind == "urdf" and robot in problem.objects:
+                q = _robot_coords(problem.domain.frame_of(problem.objects[robot]), robot, i, by_key_step, values)
                 if q is not None:
-                    st[obj] = q
-                continue
-            if frame is None:
-                continue                      # fixed at its scene pose
-            try:
-                expr, variables = factory.world_pose_expr(obj, states, i)
-            except Exception:                 # noqa: BLE001 - a pose we cannot expand is not drawn
-                continue
-            if any(v not in values for v in variables):
-                continue
-            probe = FactorInstance("render.world", "render", (), frozenset(), i, 1, (PartialState(),),
-                                   variables, (Constraint(expr, "==", Num(0.0)),))
-            st[obj] = np.array([h for _, h in constraint_rows(probe, values, compiled.geometry)])
+                    st[robot] = q
         out.append(st)
     return out
 

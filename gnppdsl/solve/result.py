@@ -69,6 +69,11 @@ class Step:
     state: str                                # s_i in DSL syntax
     values: dict[str, list[float]] = field(default_factory=dict)          # key -> x_i^k
     trajectories: dict[str, list[list[float]]] = field(default_factory=dict)  # key -> waypoints
+    # filled by gnppdsl.solve.motion.annotate_motion: seconds from the start at s_i, the time of
+    # each waypoint of the trajectories to s_{i+1}, world poses of the movable entities at s_i
+    time: float | None = None
+    trajectory_times: dict[str, list[float]] = field(default_factory=dict)
+    world: dict[str, list[float]] = field(default_factory=dict)
 
 
 @dataclass
@@ -119,6 +124,10 @@ class Result:
     conflicts: list[Conflict] = field(default_factory=list)
     stats: Stats = field(default_factory=Stats)
     time_limit: float | None = None
+    # filled by gnppdsl.solve.motion.annotate_motion (docs/result.schema.json)
+    inputs: dict[str, str] = field(default_factory=dict)            # "problem", "domain": file paths
+    coordinates: dict[str, list[str]] = field(default_factory=dict)  # variable key -> component names
+    robots: dict[str, dict[str, Any]] = field(default_factory=dict)  # robot -> joints, configuration / trajectory keys
     # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
     extras: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -143,7 +152,10 @@ class Result:
             "solved": self.solved,
             "message": self.message,
             "time_limit": self.time_limit,
+            "inputs": dict(self.inputs),
             "plan": list(self.plan),
+            "coordinates": dict(self.coordinates),
+            "robots": dict(self.robots),
             "steps": [asdict(s) for s in self.steps],
             "conflicts": [c.to_json() for c in self.conflicts],
             "stats": _finite(asdict(self.stats)),
