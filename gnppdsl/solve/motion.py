@@ -161,20 +161,12 @@ def time_grid(steps: Sequence[Any], coords: dict[str, Coordinates]) -> tuple[lis
     return times, traj_times
 
 
-def plan_states(task: Any, plan: Sequence[str]) -> list[list[int]]:
+def result_states(task: Any, plan: Sequence[str]) -> list[list[int]]:
     """The SAS+ states s_0 .. s_n of a plan given by action names (as in the result JSON),
-    re-derived with the task's own semantics (the plan is validated on the way)."""
-    from gnppdsl.errors import UserError
-    from gnppdsl.logic.validate import validate_plan
+    re-derived with the task's own semantics (`gnppdsl.compile.semantics`)."""
+    from gnppdsl.compile.semantics import parse_plan, plan_states
 
-    index = {op.name: k for k, op in enumerate(task.operators)}
-    missing = [a for a in plan if a not in index]
-    if missing:
-        raise UserError(f"action '{missing[0]}' of the result is not an action of this problem")
-    v = validate_plan(task, [index[a] for a in plan])
-    if not v.valid:
-        raise UserError(f"the result's plan is not valid for this problem: {v.error}")
-    return [list(s) for s in v.states]
+    return [list(s) for s in plan_states(task, parse_plan(task, "\n".join(plan)))]
 
 
 ValueOf = Callable[[str, int], "np.ndarray | None"]
@@ -242,7 +234,7 @@ def annotate_motion(result: Any, compiled: Any) -> None:
     result.robots = robots
     times, traj_times = time_grid(result.steps, coords)
     states = result.extras.get("plan").states if result.extras.get("plan") is not None else \
-        plan_states(compiled.task, result.plan)
+        result_states(compiled.task, result.plan)
     by = {(k, i): v for i, st in enumerate(result.steps) for k, v in st.values.items()}
     for i, st in enumerate(result.steps):
         st.time = times[i]

@@ -30,7 +30,11 @@ def test_emit_pddl_into_directory(p1, tmp_path, capsys):
     out_dir = tmp_path / "out"
     assert main(["compile", p1, "--emit", "pddl", "-o", str(out_dir)]) == 0
     assert sorted(p.name for p in out_dir.iterdir()) == ["domain.pddl", "p1.pddl"]
-    assert "(:action pick_b1_g_s1" in (out_dir / "domain.pddl").read_text()
+    domain = (out_dir / "domain.pddl").read_text()
+    assert "(:action pick\n    :parameters (?o - block ?g - gripper ?from - place_type)" in domain
+    assert main(["compile", p1, "--emit", "pddl-ground", "-o", str(tmp_path / "g")]) == 0
+    assert "(:action pick_b1_g_s1" in (tmp_path / "g" / "domain.pddl").read_text()
+    assert main(["compile", p1, "--emit", "sas", "--inline-derived"]) == 2
 
 
 def test_emit_factors_with_plan(p1, capsys, tmp_path):
