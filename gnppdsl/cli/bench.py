@@ -1,28 +1,23 @@
 """`gnpp bench`: algorithms x problems x seeds, printed like Table I of paper 000 and saved as CSV.
 
 Each cell of the table is `mean ± std` over the successful runs of NLP solves and seconds, with
-the success rate; N0 (first logical plan) and N (returned solution) per problem. Runs are done
-one after another in this process; every run builds its own solver (its own casadi function
-cache and its own subgraph database), so no run profits from an earlier one.
+the success rate; N0 (first logical plan) and N (returned solution) per problem. Every run builds its
+own solver (its own casadi function cache and its own subgraph database), so no run profits from
+an earlier one. Where the runs go (this process, or Ray tasks on this machine or a cluster) and
+how an interrupted sweep resumes: `gnppdsl.cli.sweep`.
 """
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import re
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
 from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
-from gnppdsl.solve.result import algorithm_title   # light as well
+from gnppdsl.cli.algorithms import AlgorithmSpec, parse_algorithms   # light as well
 
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
-CSV_FIELDS = ("problem", "algorithm", "seed", "status", "solved", "nlp_solves", "ipopt_runs", "nlp_time",
-              "logic_time", "total_time", "cpu_time", "plans", "conflicts", "db_feasible_hits",
-              "db_infeasible_hits", "reused_solutions", "N0", "N", "max_violation", "kernels_native",
-              "kernels_compiled", "message")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,40 +32,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_jit_argument(parser, default="off (no run's time depends on what background compilers have "
                                      "finished; --jit counts each compile in the run that needs it)")
     add_curvature_argument(parser)
-    parser.add_argument("--csv", default=None, metavar="FILE", help="write one row per run")
+    parser.add_argument("--csv", default=None, metavar="FILE",
+                        help="one row per run, appended as each run ends; an existing file of an "
+                             "earlier sweep is resumed (only the runs it lacks are run)")
+    parser.add_argument("--markdown", default=None, metavar="FILE",
+                        help="also write the table as markdown, the paper's Table I CPU times beside "
+                             "each measured problem that has a paper name (lab4 -> Lab_4)")
+    parser.add_argument("--plot", default=None, metavar="PNG",
+                        help="bar plot of CPU time per problem, this project beside the paper's Table I "
+                             "(needs matplotlib)")
+    parser.add_argument("--workers", type=int, default=1, metavar="N",
+                        help="run N runs at a time on a local Ray (each in its own process with "
+                             "--run-timeout and --memory-limit); 1 (default): one after another "
+                             "in this process, no Ray needed")
+    parser.add_argument("--address", default=None, metavar="ADDR",
+                        help="join an existing Ray cluster (e.g. 'auto' or HOST:PORT) instead of "
+                             "starting one; the problem files must be at the same paths on its nodes")
+    parser.add_argument("--run-timeout", type=float, default=None, metavar="S",
+                        help="with Ray: wall-clock cap of one run, killed and recorded as "
+                             "killed_timeout (default: 2 x --time-limit + 60)")
+    parser.add_argument("--memory-limit", type=int, default=None, metavar="MB",
+                        help="with Ray: address-space cap of one run, recorded as killed_memory "
+                             "when exceeded (default: none)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
-
-
-@dataclass(frozen=True)
-class AlgorithmSpec:
-    label: str          # as given, e.g. "gnpp_trn"
-    algorithm: str      # "gnpp" | "oneway" | "rlgp"
-    switches: str | None
-
-    @property
-    def title(self) -> str:
-        return algorithm_title(self.algorithm, self.switches)
-
-
-def parse_algorithms(text: str) -> list[AlgorithmSpec]:
-    from gnppdsl.errors import UserError
-
-    specs = []
-    for raw in (t.strip() for t in text.split(",")):
-        if not raw:
-            continue
-        low = raw.lower().replace("-", "_")
-        if low in ("oneway", "one_way"):
-            specs.append(AlgorithmSpec(raw, "oneway", ""))
-            continue
-        m = re.fullmatch(r"(gnpp|rlgp)(?:_([trng]*))?", low)
-        if not m or (m.group(2) is not None and len(set(m.group(2))) != len(m.group(2))):
-            raise UserError(f"--algorithms: unknown algorithm '{raw}' "
-                            f"(use oneway, gnpp, rlgp or gnpp_<subset of trng>, e.g. gnpp_trn)")
-        specs.append(AlgorithmSpec(raw, m.group(1), m.group(2)))
-    if not specs:
-        raise UserError("--algorithms: no algorithm given")
-    return specs
 
 
 _PROBLEM_RE = re.compile(r"^\s*problem\s+\w+\s+for\s+\w+", re.MULTILINE)
@@ -145,87 +129,118 @@ def format_table(problems: list[str], specs: list[AlgorithmSpec], rows: list[dic
     return "\n".join(out)
 
 
-def run(args: argparse.Namespace) -> int:
-    from gnppdsl.errors import UserError
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+_INT_FIELDS = ("seed", "nlp_solves", "ipopt_runs", "plans", "conflicts", "db_feasible_hits",
+               "db_infeasible_hits", "reused_solutions", "N0", "N", "kernels_native", "kernels_compiled")
+_FLOAT_FIELDS = ("nlp_time", "logic_time", "total_time", "cpu_time", "max_violation")
 
-    specs = parse_algorithms(args.algorithms)
+
+def typed(row: dict) -> dict:
+    """A row read back from the CSV with the types a fresh run gives (for the table)."""
+    out = dict(row)
+    for k in _INT_FIELDS:
+        v = out.get(k)
+        out[k] = None if v in (None, "") else int(float(v))
+    for k in _FLOAT_FIELDS:
+        v = out.get(k)
+        out[k] = None if v in (None, "") else float(v)
+    out["solved"] = out.get("solved") in (True, "True", "true", "1")
+    return out
+
+
+def _check_numbers(args: argparse.Namespace) -> None:
+    from gnppdsl.errors import UserError
+
     if args.seeds < 1:
         raise UserError("--seeds must be >= 1")
-    if args.time_limit <= 0:
-        raise UserError("--time-limit must be positive")
-    if args.csv and not Path(args.csv).resolve().parent.is_dir():
-        # say so before minutes of benchmarking, not after
-        raise UserError(f"--csv {args.csv}: directory {Path(args.csv).resolve().parent} does not exist")
+    if not math.isfinite(args.time_limit) or args.time_limit <= 0:
+        raise UserError("--time-limit must be positive and finite")
+    if args.workers < 1:
+        raise UserError("--workers must be >= 1")
+    if args.run_timeout is not None and (not math.isfinite(args.run_timeout) or args.run_timeout <= 0):
+        raise UserError("--run-timeout must be positive and finite")
+    if args.memory_limit is not None and args.memory_limit < 64:
+        raise UserError("--memory-limit must be at least 64 (MB)")
+
+
+def _write_text(path: str, text: str, option: str) -> None:
+    from gnppdsl.errors import UserError
+
+    try:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text)
+    except OSError as exc:
+        raise UserError(f"{option} {path}: {exc.strerror or exc}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    from gnppdsl.cli.sweep import CsvJournal, RunSettings, grid, run_on_ray, run_serial
+
+    specs = parse_algorithms(args.algorithms)
+    _check_numbers(args)
+    journal = CsvJournal(args.csv) if args.csv else None
     files = find_problems(args.paths)
-    rows: list[dict] = []
-    names: list[str] = []
+    settings = RunSettings(time_limit=args.time_limit, max_horizon=args.max_horizon, order=args.order,
+                           jit=bool(args.jit) if args.jit is not None else False,
+                           distance_curvature=args.distance_curvature, run_timeout=args.run_timeout,
+                           memory_mb=args.memory_limit)
+    cells = list(grid(files, [s.label for s in specs], args.seeds))
+    done = journal.done() if journal else set()
+    todo = [c for c in cells if c.key not in done]
+    wanted = {c.key for c in cells}
+    rows = [typed(r) for r in (journal.rows if journal else []) if (r["file"], r["algorithm"], str(r["seed"])) in wanted]
+    if journal and rows:
+        print(f"gnpp bench: resuming {args.csv}: {len(rows)} of {len(cells)} runs already there",
+              file=sys.stderr)
     skipped: list[str] = []
-    for f in files:
-        try:
-            compiled = load_and_compile([str(f)])
-        except UserError as err:            # one broken problem does not stop the benchmark
-            print(f"gnpp bench: skipping {f}:\n{err}", file=sys.stderr)
-            skipped.append(str(f))
-            continue
-        name = compiled.problem.name
-        names.append(name)
-        for spec in specs:
-            for seed in range(args.seeds):
-                options = SolveOptions.from_settings(
-                    compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
-                    time_limit=args.time_limit, seed=seed, max_horizon=args.max_horizon,
-                    order=args.order, jit=args.jit if args.jit is not None else False,
-                    distance_curvature=args.distance_curvature,
-                )
-                # every run compiles its own templates: runs share nothing, so no algorithm
-                # or seed is timed with the templates an earlier one compiled (and jit is off
-                # unless --jit: no run's time depends on background compiles)
-                compiled.compilers.clear()
-                try:
-                    res = solve_compiled(compiled, options)
-                except UserError as err:
-                    print(f"gnpp bench: {name} {spec.title} seed {seed}: {err}", file=sys.stderr)
-                    rows.append({"problem": name, "algorithm": spec.label, "seed": seed, "status": "error",
-                                 "solved": False, "nlp_solves": 0, "ipopt_runs": 0, "nlp_time": 0.0,
-                                 "logic_time": 0.0, "total_time": 0.0, "cpu_time": 0.0, "plans": 0,
-                                 "conflicts": 0, "db_feasible_hits": 0, "db_infeasible_hits": 0,
-                                 "reused_solutions": 0, "N0": None,
-                                 "N": None, "max_violation": None, "kernels_native": 0,
-                                 "kernels_compiled": 0, "message": str(err)})
-                    continue
-                s = res.stats
-                row = {
-                    "problem": name, "algorithm": spec.label, "seed": seed, "status": res.status,
-                    "solved": res.solved, "nlp_solves": s.nlp_solves, "ipopt_runs": s.ipopt_runs,
-                    "nlp_time": round(s.nlp_time, 4),
-                    "logic_time": round(s.logic_time, 4), "total_time": round(s.total_time, 4),
-                    "cpu_time": round(s.cpu_time, 4),
-                    "plans": s.plans, "conflicts": s.conflicts, "db_feasible_hits": s.db_feasible_hits,
-                    "db_infeasible_hits": s.db_infeasible_hits, "reused_solutions": s.reused_solutions, "N0": s.N0, "N": s.N,
-                    "max_violation": s.max_violation, "kernels_native": s.kernels_native,
-                    "kernels_compiled": s.kernels_compiled, "message": res.message,
-                }
-                rows.append(row)
-                if not args.quiet:
-                    print(f"{name:16s} {spec.title:10s} seed {seed}: {res.status:14s} NLP {s.nlp_solves:4d} "
-                          f"cpu {s.cpu_time:6.2f} s wall {s.total_time:6.2f} s  N0 {s.N0} N {s.N}",
-                          file=sys.stderr, flush=True)
+
+    def on_row(row: dict) -> None:
+        if journal:
+            journal.append(row)
+        rows.append(typed({k: row.get(k) for k in row}))
+        if not args.quiet:
+            print(f"{row['problem']:16s} {row['algorithm']:10s} seed {row['seed']}: {row['status']:14s} "
+                  f"NLP {row.get('nlp_solves') or 0:4} cpu {float(row.get('cpu_time') or 0):6.2f} s "
+                  f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}",
+                  file=sys.stderr, flush=True)
+
+    def on_error(file: str, err: Exception) -> None:
+        print(f"gnpp bench: skipping {file}:\n{err}", file=sys.stderr)
+        skipped.append(file)
+
+    if journal:
+        journal.open()
+    try:
+        if todo and (args.workers > 1 or args.address):
+            run_on_ray(todo, settings, on_row, workers=args.workers if not args.address else None,
+                       address=args.address)
+        elif todo:
+            run_serial(todo, settings, on_row, on_error)
+    finally:
+        if journal:
+            journal.close()
+    order = {c.key: i for i, c in enumerate(cells)}
+    rows.sort(key=lambda r: order.get((r["file"], r["algorithm"], str(r["seed"])), len(order)))
+    names: list[str] = []
+    for r in rows:
+        if r["status"] != "error" and r["problem"] not in names:
+            names.append(r["problem"])
     if not names:
+        from gnppdsl.errors import UserError
         raise UserError("gnpp bench: no problem could be loaded")
     print(format_table(names, specs, rows))
     from gnppdsl.geometry import native
     print(f"distance queries: {native.describe()}")
     if skipped:
         print(f"skipped (load errors): {', '.join(skipped)}")
-    if args.csv:
-        try:
-            with open(args.csv, "w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
-                w.writeheader()
-                for r in rows:
-                    w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_FIELDS})
-        except OSError as exc:
-            raise UserError(f"--csv {args.csv}: {exc.strerror or exc}") from None
-        print(f"wrote {len(rows)} runs to {args.csv}")
+    if args.markdown:
+        from gnppdsl.cli.table1 import markdown
+        _write_text(args.markdown, markdown(names, specs, rows), "--markdown")
+        print(f"wrote {args.markdown}")
+    if args.plot:
+        from gnppdsl.cli.table1 import plot
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        plot(names, specs, rows, args.plot)
+        print(f"wrote {args.plot}")
+    if journal:
+        print(f"{len(todo)} runs added to {args.csv} ({len(journal.rows)} in all)")
     return 2 if skipped else 0

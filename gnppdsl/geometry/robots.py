@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gnppdsl.errors import UserError
+from gnppdsl.geometry.shapes import convex_from_points, shape_vertices
 from gnppdsl.ir.scene_model import SceneRobot
 
 # example-robot-data names -> path below `<share>/example-robot-data/robots/` (URDF, SRDF).
@@ -301,18 +302,6 @@ def _convexify(geometry, name: str):
     return geometry
 
 
-def convex_from_points(points: np.ndarray, what: str = "mesh"):
-    """coal.Convex hull of a point cloud (coal computes the hull; trimesh would need scipy)."""
-    import coal
-    pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3))
-    if pts.shape[0] < 4:
-        raise UserError(f"{what}: a convex shape needs at least 4 vertices, got {pts.shape[0]}")
-    vec = coal.StdVec_Vec3s()
-    for row in pts:
-        vec.append(row)
-    return coal.Convex.convexHull(vec, False, None)
-
-
 def _merge_link(link: str, gs: list[LinkGeometry]) -> list[LinkGeometry]:
     """Several shapes on one link -> their joint convex hull (one shape).
 
@@ -321,7 +310,6 @@ def _merge_link(link: str, gs: list[LinkGeometry]) -> list[LinkGeometry]:
     hull is conservative and one coal query instead of several."""
     if len(gs) == 1:
         return gs
-    from gnppdsl.geometry.shapes import shape_vertices
     pts = []
     for g in gs:
         v = shape_vertices(g.shape)

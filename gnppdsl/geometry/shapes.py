@@ -60,6 +60,18 @@ def mesh_vertices(shape: SceneShape) -> np.ndarray:
     return np.asarray(m.vertices, dtype=float) * scale
 
 
+def convex_from_points(points: np.ndarray, what: str = "mesh"):
+    """coal.Convex hull of a point cloud (coal computes the hull; trimesh would need scipy)."""
+    import coal
+    pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3))
+    if pts.shape[0] < 4:
+        raise UserError(f"{what}: a convex shape needs at least 4 vertices, got {pts.shape[0]}")
+    vec = coal.StdVec_Vec3s()
+    for row in pts:
+        vec.append(row)
+    return coal.Convex.convexHull(vec, False, None)
+
+
 def coal_shape(shape: SceneShape, planar: bool = False):
     """The convex coal shape of a scene shape (None for kind "none").
 
@@ -71,7 +83,6 @@ def coal_shape(shape: SceneShape, planar: bool = False):
 @functools.lru_cache(maxsize=1024)
 def _coal_shape_cached(shape: SceneShape, planar: bool):
     import coal
-    from gnppdsl.geometry.robots import convex_from_points
     k = shape.kind
     if k == "none":
         return None

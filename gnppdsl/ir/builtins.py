@@ -2,7 +2,7 @@
 
 This table is the single contract between the type checker (which resolves overloaded surface
 syntax such as `a * b`, `inv(p)`, `pos(p)` to one of these monomorphic names) and the nlp layer
-(which implements each of them in casadi, `gnppdsl.nlp.casadi_expr`). A test checks that every
+(which implements each of them in casadi, `gnppdsl.nlp.lowering`). A test checks that every
 name here has a casadi implementation.
 
 Value spaces and their vector layout (fixed, documented in docs/reference.md):

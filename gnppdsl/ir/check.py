@@ -9,7 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from gnppdsl.ir.workspace import Workspace, peek_header
+from gnppdsl.ir.modules import peek_header
+from gnppdsl.ir.workspace import Workspace
 from gnppdsl.lang.diagnostics import Reporter
 
 

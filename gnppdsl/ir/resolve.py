@@ -2,8 +2,9 @@
 
 The public names of the resolver, re-exported from the modules that do the work (one job each):
 
-    workspace         Workspace, ModuleEnv: files, modules, `use`, the standard library, the
-                      pieces every resolver shares (spaces, signatures, constants, templates)
+    modules           ModuleLibrary, ModuleEnv: files, modules, `use`, the standard library,
+                      the pieces every resolver shares (spaces, signatures, constants, templates)
+    workspace         Workspace: a ModuleLibrary that resolves domain and problem files
     resolve_domain    DomainResolver: a domain's types, declarations, frames, templates
     resolve_logic     LogicResolver: terms, literals, formulas, effects, actions
     resolve_rules     RuleResolver: rule patterns, `where`, template calls
@@ -17,6 +18,7 @@ The expression half (template bodies, frames, template-call arguments) is delega
 from __future__ import annotations
 
 from gnppdsl.ir.check import CheckReport, check_files, expand_paths
-from gnppdsl.ir.workspace import ModuleEnv, Workspace
+from gnppdsl.ir.modules import ModuleEnv
+from gnppdsl.ir.workspace import Workspace
 
 __all__ = ["Workspace", "ModuleEnv", "CheckReport", "check_files", "expand_paths"]

@@ -1,7 +1,7 @@
 """A domain file -> `model.Domain`: types, constants, state and continuous declarations,
 frames and templates, then the logic, rules and settings blocks by their own resolvers.
 
-Separate from the workspace because a domain is resolved once per file against modules the
+Separate from the module library because a domain is resolved once per file against modules the
 workspace has already loaded; separate from `resolve_logic`, `resolve_rules` and
 `resolve_settings` because those are also used for problems (logic, settings) or are a
 language of their own (rules), and read only what this resolver has collected.
@@ -17,8 +17,8 @@ from gnppdsl.ir.resolve_logic import LogicResolver
 from gnppdsl.ir.resolve_rules import RuleResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
 from gnppdsl.ir.typecheck import OBJ, Checker, Scope
-from gnppdsl.ir.workspace import (DECL_WORDS, PRELUDE, RESERVED_TYPE_NAMES, VALUE_SPACES, ModuleEnv,
-                                  Workspace, merged_decls, note_param, qualified_consts)
+from gnppdsl.ir.modules import (DECL_WORDS, PRELUDE, RESERVED_TYPE_NAMES, VALUE_SPACES, ModuleEnv,
+                                ModuleLibrary, merged_decls, note_param, qualified_consts)
 from gnppdsl.lang import ast
 from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 
@@ -26,7 +26,7 @@ from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 class DomainResolver:
     """Resolves one domain file into a `model.Domain`; mistakes go to the workspace's reporter."""
 
-    def __init__(self, ws: Workspace, f: ast.FileAst) -> None:
+    def __init__(self, ws: ModuleLibrary, f: ast.FileAst) -> None:
         self.ws = ws
         self.f = f
         self.r = ws.reporter

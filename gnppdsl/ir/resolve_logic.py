@@ -8,15 +8,30 @@ Separate because it is used with two owners: a `DomainResolver` while a domain i
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from gnppdsl.ir import model as M
 from gnppdsl.ir.expr import Obj, Param
 from gnppdsl.lang import ast
 from gnppdsl.lang.diagnostics import did_you_mean
 
-if TYPE_CHECKING:  # pragma: no cover
-    from gnppdsl.ir.resolve_domain import DomainResolver
+
+class LogicOwner(Protocol):
+    """What `LogicResolver` reads of its owner: a `resolve_domain.DomainResolver`, or a
+    problem's view of a finished domain (`resolve_problem._DomainView`, which has no
+    `typed_params`: a problem declares no actions). A protocol, not the resolver's class,
+    because the domain resolver imports this module (no import cycle)."""
+
+    state_vars: dict[str, M.StateVar]
+    derived: dict[str, M.Derived]
+    constants: dict[str, str]
+
+    def err(self, span, msg, kind="error", hint=None) -> None: ...
+
+    def is_subtype(self, sub: str, sup: str) -> bool: ...
+
+    def typed_params(self, params: tuple[ast.Param, ...], what: str, allow_untyped: bool = False,
+                     allow_union: bool = False) -> tuple[M.TypedParam, ...]: ...
 
 
 _FLIP = {"=": "!=", "!=": "=", "<": ">=", ">=": "<", ">": "<=", "<=": ">"}
@@ -25,7 +40,7 @@ _FLIP = {"=": "!=", "!=": "=", "<": ">=", ">=": "<", ">": "<=", "<=": ">"}
 class LogicResolver:
     """Literals, formulas, effects and actions over a domain's state variables."""
 
-    def __init__(self, dom: DomainResolver, objects: dict[str, str] | None = None) -> None:
+    def __init__(self, dom: LogicOwner, objects: dict[str, str] | None = None) -> None:
         self.d = dom
         self.objects = dict(dom.constants) if objects is None else objects
 

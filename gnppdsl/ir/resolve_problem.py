@@ -12,7 +12,7 @@ from gnppdsl.ir import model as M
 from gnppdsl.ir.expr import Obj
 from gnppdsl.ir.resolve_logic import LogicResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
-from gnppdsl.ir.workspace import Workspace
+from gnppdsl.ir.modules import ModuleLibrary
 from gnppdsl.lang import ast
 from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 
@@ -20,7 +20,7 @@ from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 class ProblemResolver:
     """Resolves one problem file against its resolved domain; `run()` returns the `model.Problem`."""
 
-    def __init__(self, ws: Workspace, f: ast.FileAst, dom: M.Domain) -> None:
+    def __init__(self, ws: ModuleLibrary, f: ast.FileAst, dom: M.Domain) -> None:
         self.ws = ws
         self.f = f
         self.dom = dom

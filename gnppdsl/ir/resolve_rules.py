@@ -7,22 +7,36 @@ module only reads what `DomainResolver` has already collected.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from gnppdsl.ir import model as M
 from gnppdsl.ir.expr import Param
-from gnppdsl.ir.resolve_logic import LogicResolver, article
-from gnppdsl.ir.typecheck import INT, OBJ, VAL, Checker, Ty, compatible
+from gnppdsl.ir.modules import ModuleEnv, ModuleLibrary
+from gnppdsl.ir.resolve_logic import LogicOwner, LogicResolver, article
+from gnppdsl.ir.typecheck import INT, OBJ, VAL, Checker, Scope, Ty, compatible
 from gnppdsl.lang import ast
+from gnppdsl.lang.diagnostics import Reporter
 
-if TYPE_CHECKING:  # pragma: no cover
-    from gnppdsl.ir.resolve_domain import DomainResolver
+
+class RuleOwner(LogicOwner, Protocol):
+    """What `RuleResolver` reads of the `resolve_domain.DomainResolver` that owns it (a
+    protocol because that module imports this one: no import cycle)."""
+
+    r: Reporter
+    ws: ModuleLibrary
+    types: dict[str, M.Type]
+    tags_seen: set[str]
+    template_asts: dict[str, tuple[ast.TemplateDecl, ModuleEnv | None]]
+
+    def lookup_template(self, c: ast.TCall, report: bool = True) -> str | None: ...
+
+    def scope(self, module: ModuleEnv | None = None, **kw) -> Scope: ...
 
 
 class RuleResolver:
     """Rules of one domain, over what its `DomainResolver` collected and its `LogicResolver`."""
 
-    def __init__(self, dom: DomainResolver, logic: LogicResolver) -> None:
+    def __init__(self, dom: RuleOwner, logic: LogicResolver) -> None:
         self.d = dom
         self.logic = logic
 

@@ -1,9 +1,9 @@
 """An independent numpy interpreter of resolved (stage-2) bodies, to re-check solutions.
 
 Why a second implementation: a solution is only trusted if the constraints hold when evaluated
-by code that shares nothing with the solver path (`casadi_expr` + ipopt). This module interprets
+by code that shares nothing with the solver path (`lowering`, `body_compiler` + ipopt). This module interprets
 the body tree itself, keeps every numeric constant in place (no lifting), and implements rotations
-through explicit rotation matrices and angles (casadi_expr uses quaternion algebra), so a bug in
+through explicit rotation matrices and angles (`lowering` uses quaternion algebra), so a bug in
 one is unlikely to be repeated in the other. Geometry goes through the numeric methods of the
 injected `Geometry`.
 

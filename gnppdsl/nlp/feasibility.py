@@ -38,7 +38,7 @@ import numpy as np
 
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.errors import UserError
-from gnppdsl.nlp.casadi_expr import BodyCompiler, CompiledBody, scatter_sum
+from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody, scatter_sum
 from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 
@@ -873,7 +873,7 @@ def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarr
 def _scatter_parts(n_rows: int, n_cols: int, entries: list, parts: list) -> ca.MX:
     """The sparse matrix with entry (row, col, k) of `entries` adding element k of the stacked
     `parts` at (row, col): the Jacobian and Hessian assembly's final scatter, done by
-    `casadi_expr.scatter_sum` (one constant sparse product)."""
+    `body_compiler.scatter_sum` (one constant sparse product)."""
     ent = np.array(entries, dtype=np.int64).reshape(-1, 3)
     values = ca.vertcat(*[ca.vec(q) for q in parts])
     return scatter_sum(n_rows, n_cols, ent[:, 0], ent[:, 1], values[ent[:, 2].tolist()])

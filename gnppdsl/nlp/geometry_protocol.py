@@ -3,8 +3,8 @@
 Why a protocol: resolved factor bodies call `fk`, `sdist`, `sdist2` (and `link` to name a robot
 link as a collision body), but forward kinematics and collision distances need robot models and
 shapes that live in `gnppdsl.geometry` (pinocchio, coal). The nlp layer sits *above* the data it
-needs for those, so the geometry implementation is injected: `casadi_expr` calls the symbolic
-methods while building one casadi Function per body structure, and the independent numpy
+needs for those, so the geometry implementation is injected: `lowering` calls the symbolic
+methods while a body is lowered to casadi (one Function per body structure, `body_compiler`), and the independent numpy
 evaluator (`gnppdsl.nlp.evaluate`) calls the numeric methods to re-check solutions.
 
 Layouts (see `gnppdsl.ir.builtins`): SE2 `[x, y, theta]`; SE3 `[x, y, z, qx, qy, qz, qw]`.

@@ -51,6 +51,7 @@ import casadi as ca
 import numpy as np
 
 from gnppdsl.errors import UserError
+from gnppdsl.nlp.jit_codegen import generate_c, kernel_symbol
 from gnppdsl.nlp.jit_worker import install_library, prune, try_lock
 
 MIN_INSTRUCTIONS = 5000
@@ -178,7 +179,7 @@ class KernelCache:
                         self._skipped += 1
                         return f
                     self._build(f, key, lib)
-                g = ca.external(_symbol(key), str(lib))
+                g = ca.external(kernel_symbol(key), str(lib))
                 if self.values(g, self.probes(f)) != expected:
                     if self.background:    # compiled, but not to the same numbers: never again
                         lib.with_suffix(".failed").write_text("the compiled kernel does not reproduce "
@@ -273,16 +274,6 @@ class KernelCache:
             self.last_error = f"cannot start the jit worker: {err}"
 
     @staticmethod
-    def generate(f: ca.Function, key: str, directory: Path) -> Path:
-        """f as `<symbol>.c` in `directory` (one exported function named after the key)."""
-        sym = _symbol(key)
-        named = ca.Function(sym, f.sx_in(), f.call(f.sx_in()), f.name_in(), f.name_out())
-        cg = ca.CodeGenerator(sym + ".c", {"with_header": False})
-        cg.add(named)
-        cg.generate(str(directory) + os.sep)
-        return directory / (sym + ".c")
-
-    @staticmethod
     def probes(f: ca.Function) -> list[list[np.ndarray]]:
         """Two fixed pseudo-random inputs (the same in every process)."""
         rng = np.random.default_rng(20261121)
@@ -321,7 +312,7 @@ class KernelCache:
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(prefix="gnpp_jit_") as tmp:
-                src = self.generate(f, key, Path(tmp))
+                src = generate_c(f, key, Path(tmp))
                 out = src.with_suffix(".so")
                 proc = subprocess.run([self.cc, *FLAGS, "-o", str(out), str(src)],
                                       capture_output=True, text=True, timeout=COMPILE_TIMEOUT)
@@ -353,8 +344,3 @@ def _locked(directory: Path) -> bool:
             return False
     except OSError:
         return False
-
-
-def _symbol(key: str) -> str:
-    """The kernel's C name (an identifier: the key may start with a digit)."""
-    return f"gnpp_{key}"

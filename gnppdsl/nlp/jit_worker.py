@@ -24,6 +24,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from gnppdsl.nlp.jit_codegen import generate_c
+
 COMPILE_TIMEOUT = 300.0     # seconds for one compiler run (niced: slower than in the foreground)
 KERNEL_FILE = "kernel.casadi"
 
@@ -59,9 +61,7 @@ def remove_orphans(cache: Path) -> None:
 
 def compile_one(job: Path, cache: Path, cc: str, flags: list[str]) -> bool:
     """Compile one job into `cache/<key>.so` (True); remove it either way."""
-    import casadi as ca
-
-    from gnppdsl.nlp.jit import KernelCache      # casadi: imported only when there is work
+    import casadi as ca                          # imported only when there is work
 
     key = job.name
     lib = cache / f"{key}.so"
@@ -73,7 +73,7 @@ def compile_one(job: Path, cache: Path, cc: str, flags: list[str]) -> bool:
     try:
         if lib.exists():
             return True
-        src = KernelCache.generate(ca.Function.load(str(work / KERNEL_FILE)), key, work)
+        src = generate_c(ca.Function.load(str(work / KERNEL_FILE)), key, work)
         out = src.with_suffix(".so")
         try:
             proc = subprocess.run([cc, *flags, "-o", str(out), str(src)],

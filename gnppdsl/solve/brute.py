@@ -27,7 +27,7 @@ def brute_force(compiled: Compiled, max_length: int, restarts: int = 3, toleranc
                 time_limit: float = 120.0, seed: int = 0, max_plans: int = 5000) -> BruteResult:
     """Enumerate plans by length up to `max_length`; stop at the first feasible one."""
     from gnppdsl.logic.planner import IncrementalPlanner
-    from gnppdsl.nlp.casadi_expr import BodyCompiler
+    from gnppdsl.nlp.body_compiler import BodyCompiler
     from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 
     deadline = time.perf_counter() + time_limit

@@ -159,7 +159,7 @@ class Compiled:
     compilers: dict = field(default_factory=dict, repr=False, compare=False)
 
     def body_compiler(self, jit_mode: str) -> Any:
-        """The template compiler (gnppdsl.nlp.casadi_expr.BodyCompiler) shared by every solve
+        """The template compiler (gnppdsl.nlp.body_compiler.BodyCompiler) shared by every solve
         of this problem in this process. Why shared: building a template's casadi Function and
         its SX Jacobian and Hessian depends only on the factor body and the geometry, not on the
         solve, and it is a large part of a robot solve (lab2, seed 1: 2.9 of 4.8 s CPU); a
@@ -172,7 +172,7 @@ class Compiled:
             hit = None
         if hit is None:
             from gnppdsl.nlp import jit
-            from gnppdsl.nlp.casadi_expr import BodyCompiler
+            from gnppdsl.nlp.body_compiler import BodyCompiler
 
             old = self.compilers.get(jit_mode)
             kernels = old.kernels if old is not None else jit.kernel_cache(jit_mode)

@@ -98,7 +98,7 @@ class DiscGeometry:
 
     def fk(self, robot, q, frame, base):
         import casadi as ca
-        from gnppdsl.nlp.casadi_expr import compose_se3
+        from gnppdsl.nlp.lowering import compose_se3
         l1, l2 = self.l
         x = l1 * ca.cos(q[0]) + l2 * ca.cos(q[0] + q[1])
         y = l1 * ca.sin(q[0]) + l2 * ca.sin(q[0] + q[1])

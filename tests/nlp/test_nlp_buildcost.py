@@ -1,4 +1,4 @@
-"""Per-waypoint reuse of derivatives (`casadi_expr.row_groups`, `BodyCompiler._grouped_derivative`):
+"""Per-waypoint reuse of derivatives (`lowering.row_groups`, `BodyCompiler._grouped_derivative`):
 the Jacobian and Hessian of a body assembled from one differentiated representative per group of
 waypoint-identical constraints must equal, value for value and in sparsity, the straightforward
 `ca.jacobian` / `ca.hessian` of the whole body (`direct_jacobian`, `direct_hessian`), on random
@@ -11,8 +11,8 @@ import pytest
 
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
-from gnppdsl.nlp.casadi_expr import (BodyCompiler, abstract_constraint, direct_hessian,
-                                     direct_jacobian, lift_constants, SlotSignature)
+from gnppdsl.nlp.body_compiler import BodyCompiler, direct_hessian, direct_jacobian
+from gnppdsl.nlp.lowering import SlotSignature, abstract_constraint, lift_constants
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.nlp.graph import GraphNLP
 

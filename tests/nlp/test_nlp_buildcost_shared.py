@@ -12,7 +12,8 @@ from gnppdsl.compile.factors import VarInstance
 from gnppdsl.geometry.context import GeometryContext
 from gnppdsl.ir.expr import Call, Constraint, Num, Obj, Slot, Str, Vec
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
-from gnppdsl.nlp.casadi_expr import BodyCompiler, lift_constants
+from gnppdsl.nlp.body_compiler import BodyCompiler
+from gnppdsl.nlp.lowering import lift_constants
 from gnppdsl.nlp.evaluate import constraint_rows
 
 from nlp_toys import C, factor
@@ -113,7 +114,7 @@ def test_stop_gradient_symbols_give_the_callback_derivatives(geo, seed):
     (`GeometryContext.sdist_parts`) equal those of casadi differentiating the closed body
     through the callback call nodes (zero derivatives), near and far from contact."""
     import casadi as ca
-    from gnppdsl.nlp.casadi_expr import direct_hessian, direct_jacobian
+    from gnppdsl.nlp.body_compiler import direct_hessian, direct_jacobian
     comp = BodyCompiler(geo)
     f = clear(geo, "left", "b1", frames=("panda_link5", "panda_link7", "panda_hand"))
     cb, p = comp.compile(f)

@@ -1,4 +1,5 @@
-"""casadi_expr vs the independent numpy evaluator, on every builtin, plus known values."""
+"""The casadi lowering (`lowering`, `body_compiler`) vs the independent numpy evaluator, on every
+builtin, plus known values."""
 from __future__ import annotations
 
 import math
@@ -11,8 +12,9 @@ from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.errors import UserError
 from gnppdsl.ir.builtins import BUILTINS
 from gnppdsl.ir.expr import Call, Constraint, Index, Num, Obj, Slot, Str, Vec
-from gnppdsl.nlp import casadi_expr, evaluate
-from gnppdsl.nlp.casadi_expr import BodyCompiler, BodyError
+from gnppdsl.nlp import evaluate, lowering
+from gnppdsl.nlp.body_compiler import BodyCompiler
+from gnppdsl.nlp.lowering import BodyError
 
 from nlp_toys import C, DiscGeometry, no_overlap, pose
 
@@ -20,7 +22,7 @@ GEOM = DiscGeometry({"a": 0.3, "b": 0.2, "arm2/l1": 0.1})
 
 
 def test_every_builtin_is_implemented_in_casadi_and_numpy():
-    assert set(BUILTINS) == set(casadi_expr.IMPLEMENTED)
+    assert set(BUILTINS) == set(lowering.IMPLEMENTED)
     assert set(BUILTINS) == set(evaluate.EVALUATED)
 
 

@@ -76,7 +76,7 @@ def test_instances_of_one_factory_body_share_their_compiled_body(monkeypatch):
     from pathlib import Path
 
     from gnppdsl.compile.semantics import parse_plan, plan_states
-    from gnppdsl.nlp import casadi_expr
+    from gnppdsl.nlp import body_compiler
     from gnppdsl.solve.loop import load_and_compile
 
     c = load_and_compile(str(Path(__file__).resolve().parents[2] / "examples" / "planar" / "p3_occupied.pntc"))
@@ -84,15 +84,15 @@ def test_instances_of_one_factory_body_share_their_compiled_body(monkeypatch):
              "pick(b2, g, s2); place(b2, g, side); pick(b1, g, s1); place(b1, g, target)"]
     graphs = [c.factory.factors(plan_states(c.task, parse_plan(c.task, p))) for p in plans]
     lifted = []
-    real = casadi_expr.lift_constants
-    monkeypatch.setattr(casadi_expr, "lift_constants", lambda body: lifted.append(id(body)) or real(body))
-    shared = casadi_expr.BodyCompiler(c.geometry)
+    real = body_compiler.lift_constants
+    monkeypatch.setattr(body_compiler, "lift_constants", lambda body: lifted.append(id(body)) or real(body))
+    shared = body_compiler.BodyCompiler(c.geometry)
     got = [[shared.compile(f) for f in fs] for fs in graphs]
     assert len(lifted) == len(set(lifted))                      # each body lifted once
     instances = [f for fs in graphs for f in fs]
     assert len({id(f.body) for f in instances}) < len({id(f) for f in instances})   # bodies are shared
     for fs, results in zip(graphs, got):
         for f, (cb, params) in zip(fs, results):
-            fresh_cb, fresh_params = casadi_expr.BodyCompiler(c.geometry).compile(f)
+            fresh_cb, fresh_params = body_compiler.BodyCompiler(c.geometry).compile(f)
             assert cb.n_rows == fresh_cb.n_rows and cb.kinds == fresh_cb.kinds
             np.testing.assert_array_equal(params, fresh_params)

@@ -5,7 +5,7 @@
    of that may change a single bit of any row, on real graph-NLPs of the bundled examples
    (planar blocks, the Lab with Panda arms and trajectories, a mobile manipulator) at random
    points.
-2. The casadi path (`casadi_expr.BodyCompiler`, quaternion algebra instead of rotation
+2. The casadi path (`body_compiler.BodyCompiler`, quaternion algebra instead of rotation
    matrices) on the planar and Lab graphs: the same rows up to rounding.
 
 Also: errors still come out as `EvaluationError`, and the memos never answer for other values,
@@ -107,7 +107,7 @@ def test_rows_are_bitwise_those_of_the_tree_walk(name):
 @pytest.mark.parametrize("name", ["planar_p3", "lab1"])
 def test_rows_agree_with_the_casadi_path(name):
     """An independent implementation (quaternion algebra, casadi geometry callbacks)."""
-    from gnppdsl.nlp.casadi_expr import BodyCompiler
+    from gnppdsl.nlp.body_compiler import BodyCompiler
 
     c, factors, variables, guess = graph(name)
     comp = BodyCompiler(c.geometry)

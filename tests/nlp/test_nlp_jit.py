@@ -109,7 +109,7 @@ def test_panda_derivatives_through_compiled_kernels_match_the_virtual_machine(tm
     """The Jacobian and Hessian Functions the solver assembles for lab1's factors, with and
     without compiled kernels, agree bit for bit at random points (two large Panda bodies, to
     keep the compile time of the test short)."""
-    from gnppdsl.nlp.casadi_expr import BodyCompiler
+    from gnppdsl.nlp.body_compiler import BodyCompiler
     from gnppdsl.solve.loop import load_and_compile
 
     comp = load_and_compile(str(ROOT / "examples" / "lab" / "lab1.pntc"))

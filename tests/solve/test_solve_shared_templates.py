@@ -65,7 +65,7 @@ def test_gnpp_bench_compiles_templates_for_every_run(monkeypatch):
 def test_the_shared_template_compiler_is_rebuilt_once_the_queued_kernels_are_ready():
     from solve_toy import occupied_problem
 
-    from gnppdsl.nlp.casadi_expr import BodyCompiler
+    from gnppdsl.nlp.body_compiler import BodyCompiler
 
     class Kernels:                                   # what body_compiler asks a KernelCache
         native = staticmethod(lambda f: f)

@@ -1,0 +1,387 @@
+"""Resolved (stage-2) factor bodies -> casadi Functions, one per body structure, built and cached.
+
+Why one Function per *structure*: a graph-NLP holds many instances of few templates (paper 000,
+Sec. VIII: fewer than 20 constraint types). Numeric constants that only scale values (radii,
+tolerances, fixed poses) are lifted into a parameter vector `p`, so e.g. every `no_overlap`
+instance shares one compiled Function and differs only in `p`. Constants that change the
+*shape* of the computation stay in the cache key: exponents of `pow`, waypoint and axis
+indices, `Index` positions, frame names of geometry primitives, object and robot names (by
+the geometry's `structure_key` when it has one: same-shaped blocks and same-model arms share a
+Function), and the slot signatures (dimension, waypoints) of the factor's variables.
+
+Derivatives (`BodyCompiler.jacobian`, `.hessian`) are built once per compiled body; bodies
+whose constraints repeat per waypoint (`forall k ... path[k]`) differentiate one representative
+per repeated form (`row_groups`).
+
+A compiled body is `f(x_0, ..., x_{m-1}, p) -> h`, `h` the stacked constraint rows, each row
+of kind "eq" (h = 0) or "ineq" (h <= 0); what the rows are (the lowering of the expression
+language, the builtins in casadi) is `gnppdsl.nlp.lowering`.
+
+Functions are built from SX (fully expanded, fastest) unless the injected geometry says a used
+primitive needs MX (a `casadi.Callback`); either kind can be called on MX symbols during
+assembly (`gnppdsl.nlp.feasibility`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+
+from gnppdsl.compile.factors import FactorInstance
+from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Geometry
+from gnppdsl.nlp.lowering import (BodyError, BodyLowering, RowGroup, SlotSignature, constraint_rows,
+                                  lift_constants, map_objs, row_groups, uses)
+
+
+@dataclass(frozen=True)
+class CompiledBody:
+    """One casadi Function for a body structure, with the kind of each output row."""
+
+    function: ca.Function
+    kinds: tuple[str, ...]          # "eq" | "ineq", one per row of h
+    n_params: int
+    symbolic: str                   # "SX" | "MX"
+    primitives: frozenset[str] = frozenset()   # geometry primitives used (fk, sdist, sdist2)
+    groups: tuple[RowGroup, ...] = field(default=(), compare=False)   # see `row_groups`
+    # with stop-gradient symbols (see `lowering.BodyLowering.open_stops`): (x.., p, o) -> h with the callback
+    # outputs o as an input, and (x.., p) -> o; `function` is the first with o substituted
+    open_function: ca.Function | None = field(default=None, compare=False)
+    stops: ca.Function | None = field(default=None, compare=False)
+    # `function`'s values for evaluation only: the open function of the fast stop-gradient
+    # values (`GeometryContext.witness_fast`, native distance queries); not differentiable
+    evaluate: ca.Function | None = field(default=None, compare=False)
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.kinds)
+
+
+def scatter_sum(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, values):
+    """The n_rows x n_cols matrix (SX or MX, as `values`) with values[i] added at
+    (rows[i], cols[i]) (repeated cells summed by one constant sparse product)."""
+    S = ca.MX if isinstance(values, ca.MX) else ca.SX
+    if rows.size == 0:
+        return S(n_rows, n_cols)
+    cell = cols.astype(np.int64) * n_rows + rows.astype(np.int64)     # column-major order
+    uniq, inv = np.unique(cell, return_inverse=True)
+    if uniq.size == cell.size:
+        order = np.argsort(cell, kind="stable")
+        vals = values[order.tolist()]
+    else:
+        A = ca.DM(ca.Sparsity.triplet(uniq.size, cell.size, inv.reshape(-1).tolist(),
+                                      list(range(cell.size))), 1.0)
+        vals = ca.mtimes(A, values)
+    sp = ca.Sparsity.triplet(n_rows, n_cols, (uniq % n_rows).tolist(), (uniq // n_rows).tolist())
+    return S(sp, vals)
+
+
+def _split(v, fn: ca.Function, n: int) -> list:
+    """The first n inputs of `fn` cut from one stacked column `v`."""
+    out, lo = [], 0
+    for i in range(n):
+        d = fn.size1_in(i)
+        out.append(v[lo:lo + d])
+        lo += d
+    return out
+
+
+@dataclass(frozen=True)
+class _Named:
+    """An object name replaced by its geometry's structure key (cache keys only)."""
+
+    key: Any
+
+
+def _fname(name: str) -> str:
+    return "h_" + "".join(ch if ch.isalnum() else "_" for ch in name)
+
+
+def _has_repeats(cb: CompiledBody) -> bool:
+    """True when some row group has several members (derivatives are then assembled from one
+    representative per group); bodies without repeats are differentiated directly."""
+    return cb.symbolic == "SX" and any(len(g.members) > 1 for g in cb.groups)
+
+
+def _symbols(cb: CompiledBody) -> tuple[list, Any]:
+    F = cb.function
+    slots = [ca.SX.sym(f"x{j}", F.size1_in(j)) for j in range(F.n_in() - 1)]
+    return slots, ca.SX.sym("p", F.size1_in(F.n_in() - 1))
+
+
+def _open_rows(cb: CompiledBody, slots: list, p) -> tuple[Any, Any, Any]:
+    """(h, o, o's value) on SX symbols: with stop-gradient symbols, h is the open function of
+    a fresh o (differentiate with o held constant, then substitute o's value); else o is
+    empty."""
+    if cb.open_function is None:
+        return cb.function(*slots, p), ca.SX(0, 1), ca.SX(0, 1)
+    O = ca.SX.sym("o", cb.open_function.size1_in(len(slots) + 1))
+    return cb.open_function(*slots, p, O), O, cb.stops(*slots, p)
+
+
+def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -> ca.Function:
+    """Function inputs -> D with the stop-gradient symbols O replaced by their values Ov (both
+    functions of `inputs`). Why an MX wrapper around two SX Functions instead of
+    `ca.substitute`: substituting into a Panda Hessian re-evaluates its whole SX graph (0.5 s of
+    lab1's assembly); the wrapper costs two call nodes. `native` (a `jit.KernelCache.native`)
+    may replace the pure SX part, the derivative itself, by compiled code."""
+    native = native or (lambda f: f)
+    if O.numel() == 0:
+        return native(ca.Function(name, inputs, [D]))
+    open_f = native(ca.Function(name + "_open", [*inputs, O], [D]))
+    stop_f = ca.Function(name + "_stops", inputs, [Ov])
+    m = [ca.MX.sym(f"a{i}", x.sparsity()) for i, x in enumerate(inputs)]
+    return ca.Function(name, m, [open_f(*m, stop_f(*m))])
+
+
+def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
+    """(x_0, ..., p) -> dh/dX by differentiating the whole body at once (reference for the
+    grouped assembly; used for bodies without repeated constraints)."""
+    F = cb.function
+    slots, p = _symbols(cb)
+    X = ca.vertcat(*slots)
+    out, O, Ov = _open_rows(cb, slots, p)
+    return _closed(F.name() + "_jac", [*slots, p], O, Ov, ca.jacobian(out, X), native)
+
+
+def direct_hessian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
+    """(x_0, ..., p, lam) -> d^2 (lam . h) / dX^2 by differentiating the whole body at once."""
+    F = cb.function
+    slots, p = _symbols(cb)
+    lam = ca.SX.sym("lam", cb.n_rows)
+    X = ca.vertcat(*slots)
+    out, O, Ov = _open_rows(cb, slots, p)
+    H = ca.hessian(ca.dot(lam, out), X)[0] if cb.n_rows else ca.SX(X.numel(), X.numel())
+    return _closed(F.name() + "_hess", [*slots, p, lam], O, Ov, H, native)
+
+
+class BodyCompiler:
+    """Compiles factor bodies to casadi Functions, cached by (template, structure).
+
+    Why a class: it owns the cache and the injected geometry, and lives as long as a solve loop
+    so that every template is compiled once across all the graph-NLPs of the loop."""
+
+    def __init__(self, geometry: Geometry | None = None, kernels: Any = None):
+        """`kernels`: a `gnppdsl.nlp.jit.KernelCache` to run the large derivative kernels as
+        compiled code (None: casadi's virtual machine)."""
+        self.geometry = geometry
+        self.kernels = kernels
+        self._native = kernels.native if kernels is not None else None
+        self._cache: dict[tuple, CompiledBody] = {}
+        # per-instance memo (by identity; the instance is kept alive in the value): lifting and
+        # hashing a body costs more than a lookup, and every subgraph re-assembles its factors
+        self._instances: dict[int, tuple[FactorInstance, CompiledBody, np.ndarray]] = {}
+        self._bodies: dict[tuple, tuple[tuple, CompiledBody, np.ndarray]] = {}   # see `compile`
+        self.compiled = 0           # number of distinct Functions built (for stats / tests)
+        self._hessians: dict[int, tuple[CompiledBody, ca.Function]] = {}
+        self._jacobians: dict[int, tuple[CompiledBody, ca.Function]] = {}
+        self._reps: dict[tuple, ca.Function | None] = {}   # row-group representative derivatives
+        self._names: dict[str, Any] = {}                    # object name -> structure key
+
+    def jacobian(self, cb: CompiledBody) -> ca.Function:
+        """(x_0, ..., x_{m-1}, p) -> dh/dX (X the stacked slots), an SX Function built once per
+        compiled body (see `hessian` for why the nlp layer assembles derivatives itself, and
+        `_grouped_derivative` for bodies with repeated per-waypoint constraints)."""
+        hit = self._jacobians.get(id(cb))
+        if hit is not None and hit[0] is cb:
+            return hit[1]
+        jf = self._grouped_derivative(cb, False) if _has_repeats(cb) else direct_jacobian(cb, self._native)
+        self._jacobians[id(cb)] = (cb, jf)
+        return jf
+
+    def hessian(self, cb: CompiledBody) -> ca.Function:
+        """(x_0, ..., x_{m-1}, p, lam) -> d^2 (lam . h) / dX^2 with X the stacked slots, built
+        once per compiled body as an SX Function. Why not let casadi differentiate the
+        assembled MX graph: its forward-over-reverse Hessian through the call nodes was
+        measured 10-20x more expensive to build and to evaluate on the Panda templates
+        (FK chains, coal feature models) than these per-template SX Hessians."""
+        hit = self._hessians.get(id(cb))
+        if hit is not None and hit[0] is cb:
+            return hit[1]
+        hf = self._grouped_derivative(cb, True) if _has_repeats(cb) else direct_hessian(cb, self._native)
+        self._hessians[id(cb)] = (cb, hf)
+        return hf
+
+    def _representative(self, group: RowGroup, hessian: bool) -> ca.Function | None:
+        """Jacobian (points..., slots..., p) -> dh/d[points, slots] or Hessian (..., lam) ->
+        d^2 (lam . h) of a row group's representative constraint; cached by group key, so equal
+        constraints of different bodies share it too. None when it has no input or no row."""
+        key = (group.key, hessian)
+        if key in self._reps:
+            return self._reps[key]
+        ac, pdims, wsigs, n_par = group.key
+        pts = [ca.SX.sym(f"w{m}", d) for m, d in enumerate(pdims)]
+        slots = [ca.SX.sym(f"x{m}", sg.dim) for m, sg in enumerate(wsigs)]
+        p = ca.SX.sym("p", n_par)
+        builder = BodyLowering(slots, wsigs, p, self.geometry, pts, open_stops=True)
+        builder.plan_chains(ac)
+        h = ca.vertcat(*(constraint_rows(builder, c) for c in ac))
+        fn = None
+        if (pts or slots) and h.numel():
+            X = ca.vertcat(*pts, *slots)
+            if hessian:
+                lam = ca.SX.sym("lam", h.numel())
+                D = ca.hessian(ca.dot(lam, h), X)[0]
+            else:
+                D = ca.jacobian(h, X)
+            # derivatives with the stop-gradient symbols held constant, then their values
+            # (evaluated only: the fast twins)
+            O, Ov = ((ca.vertcat(*[o for o, _ in builder.stops]), ca.vertcat(*builder.fast_stops))
+                     if builder.stops else (ca.SX(0, 1), ca.SX(0, 1)))
+            ins = [*pts, *slots, p, lam] if hessian else [*pts, *slots, p]
+            fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D, self._native)
+        self._reps[key] = fn
+        return fn
+
+    def _grouped_derivative(self, cb: CompiledBody, hessian: bool, inline: bool = False
+                            ) -> ca.Function:
+        """The body's Jacobian or Hessian from its row groups: each group's representative is
+        differentiated once, then evaluated at every member's points, slots, parameters (and
+        multipliers), and the results are scattered into place and summed. Same function and
+        sparsity as differentiating the whole body (`direct_jacobian`, `direct_hessian`).
+
+        Why an MX Function with one mapped call per group (default) rather than inlined SX
+        calls (`inline=True`, kept for tests): measured on lab1's paths_apart (108 rows, before
+        the later stop-gradient and block changes), the inlined Hessian was a 3.5M-instruction
+        SX graph built in 2.7-3.1 s (whole-body ca.hessian: 4.0 s) and evaluated in 36 ms; the
+        mapped one built in 13 ms and evaluated in 33 ms, with equal sparsity and values to
+        4e-16. `tests/nlp/test_nlp_buildcost*.py` check the values and sparsity."""
+        F = cb.function
+        m = F.n_in() - 1
+        sizes = [F.size1_in(j) for j in range(m)]
+        offs = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        n_x = int(offs[-1])
+        S = ca.SX if inline else ca.MX
+        slots = [S.sym(f"x{j}", sizes[j]) for j in range(m)]
+        p = S.sym("p", F.size1_in(m))
+        lam = S.sym("lam", cb.n_rows)
+        X = ca.vertcat(*slots) if slots else S(0, 1)
+        vals, rows, cols = [], [], []
+        for g in cb.groups:
+            fn = self._representative(g, hessian)
+            if fn is None:
+                continue
+            sp = fn.sparsity_out(0)
+            if sp.nnz() == 0:
+                continue
+            rr, cc = (np.asarray(t, dtype=np.int64) for t in sp.get_triplet())
+            pdims, n_par = g.key[1], g.key[3]
+            colmaps = []
+            for mem in g.members:
+                idx = [np.arange(offs[j] + k * d, offs[j] + (k + 1) * d)
+                       for (j, k), d in zip(mem.points, pdims)]
+                idx += [np.arange(offs[j], offs[j + 1]) for j in mem.slots]
+                colmaps.append(np.concatenate(idx))
+                rows.append(colmaps[-1][rr] if hessian else mem.row0 + rr)
+                cols.append(colmaps[-1][cc])
+            G = len(g.members)
+            if inline:
+                for mem, cm in zip(g.members, colmaps):
+                    args = _split(X[cm.tolist()], fn, len(mem.points) + len(mem.slots))
+                    args.append(p[list(mem.params)] if n_par else S(0, 1))
+                    if hessian:
+                        args.append(lam[mem.row0:mem.row0 + g.n_rows])
+                    vals.append(ca.vec(fn(*args).nz[:]))
+                continue
+            cm = np.stack(colmaps, axis=1)                       # inputs x members
+            args, lo = [], 0
+            for i in range(len(g.members[0].points) + len(g.members[0].slots)):
+                d = fn.size1_in(i)
+                args.append(ca.reshape(X[cm[lo:lo + d].reshape(-1, order="F").tolist()], d, G))
+                lo += d
+            pi = np.array([mem.params for mem in g.members], dtype=np.int64).reshape(G, n_par).T
+            args.append(ca.reshape(p[pi.reshape(-1, order="F").tolist()], n_par, G)
+                        if n_par else S(0, G))
+            if hessian:
+                li = np.array([np.arange(mem.row0, mem.row0 + g.n_rows) for mem in g.members]).T
+                args.append(ca.reshape(lam[li.reshape(-1, order="F").tolist()], g.n_rows, G))
+            mapped = fn if G == 1 else fn.map(G, "serial")
+            vals.append(ca.vec(mapped(*args).nz[:]))
+        cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0, dtype=np.int64))
+        M = scatter_sum(n_x if hessian else cb.n_rows, n_x, cat(rows), cat(cols),
+                        ca.vertcat(*vals) if vals else S(0, 1))
+        if hessian:
+            return ca.Function(F.name() + "_hess", [*slots, p, lam], [M])
+        return ca.Function(F.name() + "_jac", [*slots, p], [M])
+
+    def compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
+        """(compiled body, parameter values) for one factor instance.
+
+        Remembered per instance, and per body: the factory gives every instance of one
+        resolution (the same rule, call and consulted facts at any step of any plan) the same
+        body object with its variables shifted in time (`GraphNLPFactory._cached_instance`),
+        and the compiled body and parameters depend only on the template, the body and the
+        slots' signatures. Why: a new plan's graph is made of new instances, and computing a
+        body's structure key (lifting constants, renaming objects) costs ~1.5 ms for a
+        20-waypoint body (lab5: 841 such computations, ~1 s, per solve)."""
+        hit = self._instances.get(id(factor))
+        if hit is not None and hit[0] is factor:
+            return hit[1], hit[2]
+        sigs = tuple(SlotSignature.of(v) for v in factor.variables)
+        key = (id(factor.body), factor.template, sigs)
+        same = self._bodies.get(key)
+        if same is not None and same[0] is factor.body:
+            cb, params = same[1], same[2]
+        else:
+            cb, params = self._compile(factor, sigs)
+            if len(self._bodies) > 200_000:
+                self._bodies.clear()
+            self._bodies[key] = (factor.body, cb, params)     # keeps the body alive: ids stay unique
+        if len(self._instances) > 200_000:
+            self._instances.clear()
+        self._instances[id(factor)] = (factor, cb, params)
+        return cb, params
+
+    def _structure_of(self, name: str) -> Any:
+        key = self._names.get(name)
+        if key is None:
+            sk = getattr(self.geometry, "structure_key", None)
+            key = self._names[name] = _Named(sk(name) if sk is not None else ("name", name))
+        return key
+
+    def _compile(self, factor: FactorInstance, sigs: tuple) -> tuple[CompiledBody, np.ndarray]:
+        key_body, params = lift_constants(factor.body)
+        # object and robot names by what their geometry depends on (`structure_key`): bodies
+        # that differ only in the name of a same-shaped block share one Function
+        key = (factor.template, map_objs(key_body, self._structure_of), sigs)
+        cb = self._cache.get(key)
+        if cb is None:
+            try:
+                cb = self._build(factor.template, key_body, sigs, len(params))
+            except BodyError as err:
+                raise BodyError(f"{factor.label}: {err}") from None
+            self._cache[key] = cb
+            self.compiled += 1
+        return cb, np.asarray(params, dtype=float)
+
+    def _build(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...],
+               n_params: int) -> CompiledBody:
+        prims = uses(body, set(GEOMETRY_PRIMITIVES))
+        mx = self.geometry is not None and any(self.geometry.needs_mx(p) for p in prims)
+        S = ca.MX if mx else ca.SX
+        slots = [S.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
+        p = S.sym("p", n_params)
+        builder = BodyLowering(slots, sigs, p, self.geometry, open_stops=not mx)
+        builder.plan_chains(body)
+        rows, kinds = [], []
+        for c in body:
+            h = constraint_rows(builder, c)
+            rows.append(h)
+            kinds += ["eq" if c.op == "==" else "ineq"] * h.numel()
+        out = ca.vertcat(*rows) if rows else S(0, 1)
+        fname = _fname(name)
+        open_f = stops = evaluate = None
+        if builder.stops:
+            O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
+            open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
+            # the stop-gradient values are only ever evaluated: the fast twins
+            fast = ca.vertcat(*builder.fast_stops)
+            stops = ca.Function(fname + "_stops", [*slots, p], [fast])
+            # one SX graph: the queries' inputs share the kinematic chains with the model
+            evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
+            out = ca.substitute(out, O, Ov)
+        f = ca.Function(fname, [*slots, p], [out])
+        groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
+        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
+                            groups, open_f, stops, evaluate)
