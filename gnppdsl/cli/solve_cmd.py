@@ -35,6 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(implies switch g); a later run on the same domain starts from it")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the full result as JSON")
     parser.add_argument("--render", default=None, metavar="DIR", help="render the keyframes of the solution as images")
+    parser.add_argument("--view", action="store_true",
+                        help="open the solution in the browser 3-D viewer (as `gnpp view RESULT.json`)")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
     parser.add_argument("--tolerance", type=float, default=None, help="constraint violation tolerance")
     parser.add_argument("--quiet", action="store_true", help="print only the final status line")
@@ -82,6 +84,10 @@ def run(args: argparse.Namespace) -> int:
         emit(result.summary())
     if args.render and result.solved:
         _render(compiled, result, args.render)
+    if args.view and result.solved:
+        from gnppdsl.cli.view_cmd import show
+
+        show(result.to_json(), compiled)
     if not result.solved:
         raise SolveFailure(f"gnpp: {result.problem} not solved: {result.message}")
     return 0
