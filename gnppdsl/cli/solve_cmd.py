@@ -39,14 +39,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="open the solution in the browser 3-D viewer (as `gnpp view RESULT.json`)")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
     parser.add_argument("--tolerance", type=float, default=None, help="constraint violation tolerance")
-    parser.add_argument("--quiet", action="store_true", help="print only the final status line")
+    parser.add_argument("--quiet", action="store_true",
+                        help="print only the final status line (no progress on stderr)")
     parser.add_argument("--verbose", action="store_true", help="print each plan and conflict as found")
 
 
 def run(args: argparse.Namespace) -> int:
     from gnppdsl.errors import SolveFailure, UserError
     from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
-    from gnppdsl.solve.motion import annotate_motion
+    from gnppdsl.solve.timing import annotate_motion
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
@@ -66,11 +67,13 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
         order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
     )
-    progress = None
-    if args.verbose and not args.quiet:
-        def progress(msg: str) -> None:
-            emit(msg)
-    result = solve_compiled(compiled, options, progress=progress)
+    if args.quiet:
+        result = solve_compiled(compiled, options)
+    else:   # a live status line on a terminal, a line per plan otherwise (gnppdsl.cli.status)
+        from gnppdsl.cli.status import SolveStatus
+
+        with SolveStatus(compiled.problem.name, options.time_limit, echo=emit if args.verbose else None) as status:
+            result = solve_compiled(compiled, options, progress=status)
     annotate_motion(result, compiled)
     if args.json:
         try:

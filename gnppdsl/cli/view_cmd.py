@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gnppdsl.errors import UserError
-    from gnppdsl.solve.loop import load_and_compile
+    from gnppdsl.solve import load_and_compile
     from gnppdsl.view.result_file import load_result
 
     result = load_result(args.result)

@@ -18,7 +18,7 @@ from gnppdsl.ir.expr import CVar
 
 def world_states(compiled: Any, states: Sequence[Sequence[int]], values: dict) -> list[dict[str, Any]]:
     """[{entity: world pose or joint coordinates}] for s_0 .. s_n."""
-    from gnppdsl.solve.motion import world_poses
+    from gnppdsl.solve.timing import world_poses
 
     problem = compiled.problem
     scene = problem.scene

@@ -67,6 +67,7 @@ def export_csv(result: dict[str, Any], directory: str | Path, overwrite: bool = 
     """Write `<robot>.csv` for every robot of `result` into `directory` (created if missing);
     an existing file is kept unless `overwrite`. Returns the paths written."""
     d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
     trajs = joint_trajectories(result)
     if not trajs:
         raise UserError(f"{result.get('problem', 'the result')}: no robot configurations to export")

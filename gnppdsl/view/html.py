@@ -205,8 +205,9 @@ def render_page(result: dict[str, Any], compiled: Any) -> str:
 
 
 def write_html(result: dict[str, Any], compiled: Any, path: str | Path) -> Path:
-    """Write the page (atomically) and return its path."""
+    """Write the page (atomically; its directory created) and return its path."""
     p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
     text = render_page(result, compiled)
     tmp = p.with_name(p.name + ".tmp")
     tmp.write_text(text)

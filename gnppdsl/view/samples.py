@@ -6,7 +6,7 @@ link of an arm is. Here every sample time gets the world 4x4 placement of every 
 - URDF robots: each visual geometry of the pinocchio model (the URDF's meshes) at the robot's
   configuration (pinocchio `forwardKinematics` + `updateGeometryPlacements`, scene base);
 - objects and planar robots: `world(o)` expanded along the kinematic chain of the step's symbolic
-  state (`gnppdsl.solve.motion.world_poses`) with the robot configuration replaced by the
+  state (`gnppdsl.solve.timing.world_poses`) with the robot configuration replaced by the
   waypoint (so a held block moves with the gripper); fixed objects at their scene pose.
 Samples: every keyframe at its time, every interior trajectory waypoint at its time, and for
 phases without trajectories (planar domains) INTERPOLATION points in between, the robot
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from gnppdsl.geometry.robots import se3_to_matrix
-from gnppdsl.solve.motion import result_states, world_poses
+from gnppdsl.solve.timing import result_states, world_poses
 
 INTERPOLATION = 8      # samples per phase without a trajectory
 

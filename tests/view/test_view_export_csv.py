@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gnppdsl.cli.main import main
-from gnppdsl.solve.motion import VELOCITY_SCALE
+from gnppdsl.solve.timing import VELOCITY_SCALE
 from gnppdsl.view.export import read_csv
 
 

@@ -80,7 +80,7 @@ def test_robot_meshes_render(solved_json, tmp_path):
 
 def test_held_block_follows_the_waypoints(solved_json):
     from gnppdsl.geometry.robots import se3_to_matrix
-    from gnppdsl.solve.loop import load_and_compile
+    from gnppdsl.solve import load_and_compile
     from gnppdsl.view.samples import sample_motion
 
     data = solved_json("lab/lab1.pntc")
