@@ -64,7 +64,9 @@ def main(argv=None) -> int:
 
     from gnppdsl.geometry import native
     from gnppdsl.nlp import jit
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+    from gnppdsl.solve.compiled import load_and_compile
+    from gnppdsl.solve.loop import solve_compiled
+    from gnppdsl.solve.options import SolveOptions
     from gnppdsl.solve.verify_solution import verify_solution
 
     expected = yaml.safe_load((LAB / "expected.yaml").read_text())["problems"]

@@ -46,8 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gnppdsl.errors import SolveFailure, UserError
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
-    from gnppdsl.solve.timing import annotate_motion
+    from gnppdsl.solve.compiled import load_and_compile
+    from gnppdsl.solve.loop import solve_compiled
+    from gnppdsl.solve.options import SolveOptions
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
@@ -74,7 +75,6 @@ def run(args: argparse.Namespace) -> int:
 
         with SolveStatus(compiled.problem.name, options.time_limit, echo=emit if args.verbose else None) as status:
             result = solve_compiled(compiled, options, progress=status)
-    annotate_motion(result, compiled)
     if args.json:
         try:
             result.write_json(args.json)

@@ -176,7 +176,9 @@ class CsvJournal:
 def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
     """Run one cell in this process and return its row (a refused problem or option: an error row)."""
     from gnppdsl.cli.algorithms import parse_algorithms
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+    from gnppdsl.solve.compiled import load_and_compile
+    from gnppdsl.solve.loop import solve_compiled
+    from gnppdsl.solve.options import SolveOptions
 
     try:
         spec = parse_algorithms(cell.algorithm)[0]
@@ -236,7 +238,7 @@ def solve_cell_isolated(cell: Cell, settings: RunSettings) -> dict:
 def run_serial(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict], None],
                on_error: Callable[[str, UserError], None]) -> None:
     """Every cell in this process, each problem loaded and compiled once (no Ray needed)."""
-    from gnppdsl.solve.loop import load_and_compile
+    from gnppdsl.solve.compiled import load_and_compile
 
     by_file: dict[str, list[Cell]] = {}
     for c in cells:

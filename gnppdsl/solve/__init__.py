@@ -15,8 +15,8 @@ __all__ = ["solve_problem", "solve_compiled", "load_and_compile", "compile_probl
 
 _WHERE = {
     "solve_problem": "gnppdsl.solve.loop", "solve_compiled": "gnppdsl.solve.loop",
-    "load_and_compile": "gnppdsl.solve.loop", "compile_problem": "gnppdsl.solve.loop",
-    "SolveOptions": "gnppdsl.solve.loop", "Compiled": "gnppdsl.solve.loop",
+    "load_and_compile": "gnppdsl.solve.compiled", "compile_problem": "gnppdsl.solve.compiled",
+    "SolveOptions": "gnppdsl.solve.options", "Compiled": "gnppdsl.solve.compiled",
     "Result": "gnppdsl.solve.result", "brute_force": "gnppdsl.solve.brute",
 }
 

@@ -11,7 +11,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from gnppdsl.solve.loop import Compiled, plan_graph
+from gnppdsl.solve.compiled import Compiled
+from gnppdsl.solve.plan_graph import plan_graph
 
 
 @dataclass

@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def _cases():
     out = []
-    for sub in ("planar", "lab", "mobile"):
+    for sub in ("planar", "lab", "mobile", "field"):
         exp = ROOT / "examples" / sub / "expected.yaml"
         if not exp.is_file():
             continue

@@ -22,7 +22,7 @@ ir = pytest.importorskip("gnppdsl.ir")
 if not hasattr(ir, "load_problem"):  # pragma: no cover - front end not there yet
     pytest.skip("gnppdsl.ir.load_problem is not available", allow_module_level=True)
 
-DIRS = ["planar", "lab", "mobile"]
+DIRS = ["planar", "lab", "mobile", "field"]
 STDLIB = EXAMPLES.parent / "stdlib"
 
 
@@ -101,7 +101,7 @@ def test_problem_loads(d, name, e):
 
 def _factors(path: Path, plan: str):
     from gnppdsl.compile.semantics import parse_plan, plan_states
-    from gnppdsl.solve.loop import compile_problem
+    from gnppdsl.solve.compiled import compile_problem
 
     c = compile_problem(ir.load_problem(path))
     states = plan_states(c.task, parse_plan(c.task, plan))
@@ -135,9 +135,11 @@ def test_expected_plan_compiles(d, name, e):
         # time consistency for every block whose parent does not change, at every transition
         assert by_template["same"] == len(blocks) * n - n
     else:
-        # one kinematic switch per action, trajectories for every arm and phase
-        assert by_template["kin_switch_rel"] == n
-        arms = c.problem.objects_of("arm")
+        # one kinematic switch per action that moves an object (the Field's start_move and
+        # end_move move only the base), trajectories for every robot and phase
+        drives = sum(a.strip().startswith(("start_move(", "end_move(")) for a in plan.split(";"))
+        assert by_template["kin_switch_rel"] == n - drives
+        arms = list(c.problem.objects_of("arm")) + (list(c.problem.objects_of("mobile")) if d == "field" else [])
         assert by_template["boundary"] == len(arms) * n
         assert by_template["grasp"] >= 1 and by_template["on"] >= 1
         assert by_template["clear_arms"] == n + 1

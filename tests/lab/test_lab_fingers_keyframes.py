@@ -18,7 +18,9 @@ import pytest
 
 from gnppdsl.geometry.robots import matrix_to_se3, se3_to_matrix
 from gnppdsl.nlp.evaluate import constraint_rows, factor_violation
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.verify_solution import verify_solution
 
 LAB = Path(__file__).resolve().parents[2] / "examples" / "lab"

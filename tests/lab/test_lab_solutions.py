@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.verify_solution import verify_solution
 
 LAB = Path(__file__).resolve().parents[2] / "examples" / "lab"

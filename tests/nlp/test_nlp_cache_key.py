@@ -77,7 +77,7 @@ def test_instances_of_one_factory_body_share_their_compiled_body(monkeypatch):
 
     from gnppdsl.compile.semantics import parse_plan, plan_states
     from gnppdsl.nlp import body_compiler
-    from gnppdsl.solve.loop import load_and_compile
+    from gnppdsl.solve.compiled import load_and_compile
 
     c = load_and_compile(str(Path(__file__).resolve().parents[2] / "examples" / "planar" / "p3_occupied.pntc"))
     plans = ["pick(b1, g, s1); place(b1, g, target)",

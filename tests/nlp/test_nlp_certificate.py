@@ -22,7 +22,8 @@ from gnppdsl.nlp.certificate import certify_infeasible
 from gnppdsl.nlp.evaluate import max_violation
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.nlp.graph import GraphNLP
-from gnppdsl.solve.loop import load_and_compile, plan_graph
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.plan_graph import plan_graph
 
 from nlp_toys import C, factor, pose
 

@@ -64,12 +64,14 @@ def _planar_problem(tmp_path, line: str):
 
 def test_the_setting_reaches_the_solver_and_a_bad_value_is_located(tmp_path):
     from gnppdsl.errors import UserError
-    from gnppdsl.solve.loop import SolveOptions, _Run, load_and_compile
+    from gnppdsl.solve.compiled import load_and_compile
+    from gnppdsl.solve.loop import Loop
+    from gnppdsl.solve.options import SolveOptions
 
     c = load_and_compile(str(_planar_problem(tmp_path, "solver { distance_curvature = false }")))
     opts = SolveOptions.from_settings(c.problem.settings)
     assert opts.distance_curvature is False
-    assert _Run(c, opts, None).new_solver().options.distance_curvature is False
+    assert Loop(c, opts, None).new_solver().options.distance_curvature is False
     assert SolveOptions.from_settings(c.problem.settings, distance_curvature=True).distance_curvature
     (tmp_path / "b").mkdir()
     bad = _planar_problem(tmp_path / "b", "solver { distance_curvature = 0 }")

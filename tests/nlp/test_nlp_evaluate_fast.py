@@ -43,7 +43,7 @@ def graph(name: str):
         if not path.is_file():
             pytest.skip(f"{path} not present")
         from gnppdsl.logic.planner import IncrementalPlanner
-        from gnppdsl.solve.loop import load_and_compile
+        from gnppdsl.solve.compiled import load_and_compile
 
         c = load_and_compile(str(path))
         res = IncrementalPlanner(c.task).next_plan(max_horizon=8)

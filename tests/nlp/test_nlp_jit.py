@@ -110,7 +110,7 @@ def test_panda_derivatives_through_compiled_kernels_match_the_virtual_machine(tm
     without compiled kernels, agree bit for bit at random points (two large Panda bodies, to
     keep the compile time of the test short)."""
     from gnppdsl.nlp.body_compiler import BodyCompiler
-    from gnppdsl.solve.loop import load_and_compile
+    from gnppdsl.solve.compiled import load_and_compile
 
     comp = load_and_compile(str(ROOT / "examples" / "lab" / "lab1.pntc"))
     plan_states = [comp.task.initial]
@@ -149,7 +149,8 @@ def _planar_problem(tmp_path, line: str) -> Path:
 
 
 def test_jit_setting_reaches_the_options_and_a_bad_value_is_located(tmp_path):
-    from gnppdsl.solve.loop import SolveOptions, load_and_compile
+    from gnppdsl.solve.compiled import load_and_compile
+    from gnppdsl.solve.options import SolveOptions
 
     c = load_and_compile(str(_planar_problem(tmp_path, "solver { jit = true }")))
     assert c.problem.settings.jit is True

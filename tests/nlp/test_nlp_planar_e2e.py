@@ -12,7 +12,7 @@ import pytest
 
 try:
     from gnppdsl.ir import load_problem  # noqa: F401  (the parser/IR front end)
-    from gnppdsl.solve.loop import load_and_compile
+    from gnppdsl.solve.compiled import load_and_compile
 except ImportError as err:  # pragma: no cover - only while the front end is being written
     pytest.skip(f"front end not available yet: {err}", allow_module_level=True)
 

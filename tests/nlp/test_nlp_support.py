@@ -16,7 +16,8 @@ from gnppdsl.compile.semantics import parse_plan, plan_states
 from gnppdsl.nlp.evaluate import max_violation
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.nlp.subgraph import convergence_heuristic
-from gnppdsl.solve.loop import load_and_compile, plan_graph
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.plan_graph import plan_graph
 
 P5 = Path(__file__).resolve().parents[2] / "examples" / "planar" / "p5_handover.pntc"
 PLANS = {"g2 cannot reach the block": ("pick(b1, g2, s1); place(b1, g2, target)", (0, 1)),

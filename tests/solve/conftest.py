@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gnppdsl.solve import loop
+from gnppdsl.solve import feasibility_check
 
 
 @pytest.fixture
@@ -12,7 +12,7 @@ def zigzag_starts(monkeypatch):
     """Straight-line starts of the toy's paths already satisfy their phases (no phase NLP
     would run): the interpolation is replaced by a zigzag that breaks the step bound, so the
     phases are solved by their NLPs."""
-    real = loop.interpolate_trajectories
+    real = feasibility_check.interpolate_trajectories
 
     def zigzag(trajs, values, neighbours=lambda v: ()):
         out = real(trajs, values, neighbours)
@@ -22,4 +22,4 @@ def zigzag_starts(monkeypatch):
             out[v] = pts.reshape(-1)
         return out
 
-    monkeypatch.setattr(loop, "interpolate_trajectories", zigzag)
+    monkeypatch.setattr(feasibility_check, "interpolate_trajectories", zigzag)

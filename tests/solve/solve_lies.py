@@ -1,20 +1,20 @@
-"""A solver that lies: false one-start 'infeasible' verdicts injected into `_Checker.solve`, to
-test that the loop never learns them as conflicts and recovers the same answer."""
+"""A solver that lies: false one-start 'infeasible' verdicts injected into
+`FeasibilityCheck.solve`, to test that the loop never learns them as conflicts and recovers the same answer."""
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
 
-from gnppdsl.solve import loop
+from gnppdsl.solve.feasibility_check import FeasibilityCheck
 
 
 def lie_when(monkeypatch, condition, once: bool = True, shift: float = 0.0) -> list:
-    """`_Checker.solve` turns each feasible verdict for which `condition(checker, g)` holds into
-    a false one-start 'infeasible' (what a stuck first start gives), once per subgraph (or every
+    """`FeasibilityCheck.solve` turns each feasible verdict for which `condition(checker, g)`
+    holds into a false one-start 'infeasible' (what a stuck first start gives), once per subgraph (or every
     time: `once=False`); its convergence point is the solution moved by `shift` in every
     coordinate (0: the solution itself). The returned list names the lies."""
-    real = loop._Checker.solve
+    real = FeasibilityCheck.solve
     lies: list = []
 
     def lying(self, g):
@@ -29,5 +29,5 @@ def lie_when(monkeypatch, condition, once: bool = True, shift: float = 0.0) -> l
             return fake
         return r
 
-    monkeypatch.setattr(loop._Checker, "solve", lying)
+    monkeypatch.setattr(FeasibilityCheck, "solve", lying)
     return lies

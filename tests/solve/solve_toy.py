@@ -18,7 +18,7 @@ from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.compile.sas import Effect, Operator, PartialState, SASTask, SASVariable
 from gnppdsl.ir.expr import Call, Constraint, Num, Slot
 from gnppdsl.nlp.subgraph import Relaxation
-from gnppdsl.solve.loop import Compiled
+from gnppdsl.solve.compiled import Compiled
 
 R = 0.05
 

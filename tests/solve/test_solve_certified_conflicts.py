@@ -1,5 +1,5 @@
 """Conflicts certified at the plan's convergence point and confirmed by the plan's restarts
-(`_Checker.certify`, `_Checker.confirm_by_parent`, SolveOptions.certify).
+(`FeasibilityCheck.certify`, `FeasibilityCheck.confirm_by_parent`, SolveOptions.certify).
 
 Planar p5 (two grippers, a handover): both direct plans fail, each on a contradiction that is
 the support of its graph's convergence point. Certified there, each failed plan costs one NLP
@@ -15,8 +15,10 @@ from pathlib import Path
 import pytest
 
 from gnppdsl.nlp import certificate
-from gnppdsl.solve import loop
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.feasibility_check import FeasibilityCheck
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 
 from solve_checks import check_conflict_infeasible, check_solution
 
@@ -54,7 +56,7 @@ def test_certified_conflicts_make_gnpp_cheaper_than_oneway_on_the_handover(p5):
 
 
 def test_a_restart_that_does_not_certify_the_conflict_gives_it_its_own_restarts(p5, monkeypatch):
-    real_certify, real_confirm = certificate.certify_infeasible, loop._Checker.confirm_by_parent
+    real_certify, real_confirm = certificate.certify_infeasible, FeasibilityCheck.confirm_by_parent
     inside = []
 
     def confirm_by_parent(self, g, parent):
@@ -68,7 +70,7 @@ def test_a_restart_that_does_not_certify_the_conflict_gives_it_its_own_restarts(
         return None if inside else real_certify(solver, g, point, within)
 
     monkeypatch.setattr(certificate, "certify_infeasible", certify)
-    monkeypatch.setattr(loop._Checker, "confirm_by_parent", confirm_by_parent)
+    monkeypatch.setattr(FeasibilityCheck, "confirm_by_parent", confirm_by_parent)
     fallback = _solved(p5, switches="trn")
     monkeypatch.undo()
     gnpp = _solved(p5, switches="trn")
@@ -94,7 +96,7 @@ def test_an_inferred_component_is_confirmed_by_the_restarts_of_its_graph(monkeyp
     cheap = run()
     assert cheap.stats.inferred_verdicts >= cheap.stats.conflicts > 0
     assert cheap.stats.nlp_solves == cheap.stats.plans
-    monkeypatch.setattr(loop._Checker, "cheap", lambda self, g: False)
+    monkeypatch.setattr(FeasibilityCheck, "cheap", lambda self, g: False)
     own = run()
     assert _conflicts(own) == _conflicts(cheap)
     assert own.stats.nlp_solves == cheap.stats.nlp_solves + cheap.stats.conflicts

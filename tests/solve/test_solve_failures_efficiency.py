@@ -3,6 +3,7 @@ deadline between ipopt runs, the public world-pose API, and the evaluation order
 (full graph first / relaxations first) giving the same, independently checked answers."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,13 @@ if not hasattr(ir, "load_problem"):
     pytest.skip("gnppdsl.ir.load_problem is not available yet", allow_module_level=True)
 
 from gnppdsl.solve import loop  # noqa: E402
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled  # noqa: E402
+from gnppdsl.solve.compiled import load_and_compile  # noqa: E402
+from gnppdsl.solve.deadline import deadline_solver, TimeUp  # noqa: E402
+from gnppdsl.solve.feasibility_check import FeasibilityCheck  # noqa: E402
+from gnppdsl.solve.inferred_verdicts import CLOSE_START  # noqa: E402
+from gnppdsl.solve.loop import Loop, solve_compiled  # noqa: E402
+from gnppdsl.solve.options import SolveOptions  # noqa: E402
+from gnppdsl.solve.plan_graph import bound_violation  # noqa: E402
 from solve_checks import check_conflict_infeasible, check_solution  # noqa: E402
 
 _C: dict = {}
@@ -66,7 +73,7 @@ def test_solver_failure_exit_1_with_reason(capsys, monkeypatch):
     real = loop.solve_compiled
 
     def strict(c, options, progress=None):
-        return real(c, loop.replace(options, check_tolerance=1e-300), progress)
+        return real(c, replace(options, check_tolerance=1e-300), progress)
 
     monkeypatch.setattr(loop, "solve_compiled", strict)
     code = main(["solve", str(PLANAR / "p1_one_block.pntc"), "--quiet"])
@@ -107,13 +114,13 @@ def test_deadline_stops_between_ipopt_runs():
     c = compiled("p1_one_block")
     plan_states = [c.task.initial]
     graph = GraphNLP.from_factors(c.factory.factors(plan_states), c.factory.variables(plan_states))
-    solver = loop.deadline_solver(FeasibilitySolver)(c.geometry)
+    solver = deadline_solver(FeasibilitySolver)(c.geometry)
     solver.deadline = 0.0
-    with pytest.raises(loop._TimeUp):
+    with pytest.raises(TimeUp):
         solver.solve(graph)
     solver.deadline = float("inf")
     assert solver.solve(graph).feasible
-    assert loop.deadline_solver(FeasibilitySolver) is type(solver)
+    assert deadline_solver(FeasibilitySolver) is type(solver)
 
 
 @pytest.mark.parametrize("order", ["full_first", "relaxed_first"])
@@ -148,9 +155,9 @@ def test_a_graph_its_start_satisfies_is_feasible_without_an_nlp():
     from gnppdsl.nlp.evaluate import max_violation
 
     c = compiled("p1_one_block")
-    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    run = Loop(c, SolveOptions.from_settings(c.problem.settings), None)
     graph = run.build_graph([c.task.initial])          # with the factory's initial guess
-    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    checker = FeasibilityCheck(run, run.new_solver(), graph, use_db=False)
     r = checker.known_solution(graph)
     assert r is not None and r.feasible and set(r.values) == set(graph.variables)
     assert r.status.startswith("its start")
@@ -160,7 +167,7 @@ def test_a_graph_its_start_satisfies_is_feasible_without_an_nlp():
     off = run.build_graph([c.task.initial])
     pose = next(v for v in off.variables if v.kind == "pose")
     off.initial_guess[pose] = off.initial_guess[pose] + 0.05
-    assert loop._Checker(run, run.new_solver(), off, use_db=False).known_solution(off) is None
+    assert FeasibilityCheck(run, run.new_solver(), off, use_db=False).known_solution(off) is None
 
 
 def test_bad_order_is_a_user_error():
@@ -217,9 +224,9 @@ def test_verdicts_without_nlps_are_right(name):
     from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 
     c = compiled(name)
-    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings, switches="trn"), None)
+    run = Loop(c, SolveOptions.from_settings(c.problem.settings, switches="trn"), None)
     plan, graph = _first_plan_graph(run)
-    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    checker = FeasibilityCheck(run, run.new_solver(), graph, use_db=False)
     r = checker.solve(graph)
     assert not r.feasible                     # the first plan of both problems fails
     for rule in c.relaxations:
@@ -231,7 +238,7 @@ def test_verdicts_without_nlps_are_right(name):
         sub = graph._derive(sig, "{check}")
         if verdict.feasible:
             worst, _ = max_violation(sub.factor_instances, verdict.values, c.geometry)
-            assert worst <= 1e-6 and loop.bound_violation(sub.variables, verdict.values) <= 1e-6
+            assert worst <= 1e-6 and bound_violation(sub.variables, verdict.values) <= 1e-6
         else:
             assert not strict.solve(sub, seed=3).feasible, sub.describe()
 
@@ -244,20 +251,20 @@ def test_no_start_certificate_for_a_trajectory():
     from gnppdsl.nlp.evaluate import max_violation
 
     c = load_and_compile(str(Path(__file__).resolve().parents[2] / "examples" / "lab" / "lab1.pntc"))
-    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    run = Loop(c, SolveOptions.from_settings(c.problem.settings), None)
     graph = run.build_graph([c.task.initial, c.task.initial])
     path = next(v for v in graph.variables if v.waypoints)
     sub = graph.subgraph(variables=[path])
     assert sub.n_factors > 0
     assert max_violation(sub.factor_instances, {path: graph.initial_guess[path]}, c.geometry)[0] <= 1e-9
-    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    checker = FeasibilityCheck(run, run.new_solver(), graph, use_db=False)
     assert checker.start_point(sub) is None and checker.known_solution(sub) is None
     assert path not in checker.values
 
 
 @pytest.mark.parametrize("shift,used", [(2e-4, True), (5e-2, False)])
 def test_a_subgraph_starts_from_a_convergence_point_only_when_it_nearly_holds(shift, used):
-    """`_Checker.solve` starts a subgraph from an earlier convergence point when that point
+    """`FeasibilityCheck.solve` starts a subgraph from an earlier convergence point when that point
     violates the subgraph by less than CLOSE_START and less than the earlier solutions do;
     a point farther off (the local minimum of the solve that produced it) is not used. The
     point here is a solution of the slice (solved apart) moved by `shift`; the verdict
@@ -265,9 +272,9 @@ def test_a_subgraph_starts_from_a_convergence_point_only_when_it_nearly_holds(sh
     from gnppdsl.nlp.evaluate import max_violation
 
     c = compiled("p5_handover")
-    run = loop._Run(c, SolveOptions.from_settings(c.problem.settings, switches="trn"), None)
+    run = Loop(c, SolveOptions.from_settings(c.problem.settings, switches="trn"), None)
     plan, graph = _first_plan_graph(run)
-    checker = loop._Checker(run, run.new_solver(), graph, use_db=False)
+    checker = FeasibilityCheck(run, run.new_solver(), graph, use_db=False)
     lo, hi = graph.steps
     for a, b in [(a, b) for a in range(lo, hi + 1) for b in range(a, hi + 1)]:
         s = graph.time_slice(a, b)       # a feasible slice its initial guess does not satisfy
@@ -296,6 +303,6 @@ def test_a_subgraph_starts_from_a_convergence_point_only_when_it_nearly_holds(sh
     from_point = all(np.array_equal(starts[0].get(v), point[v]) for v in s.variables)
     assert from_point is used
     if used:
-        assert at_point < loop.CLOSE_START
+        assert at_point < CLOSE_START
     if r.feasible:
         assert max_violation(s.factor_instances, r.values, c.geometry)[0] <= 1e-6

@@ -1,5 +1,5 @@
-"""Idle motions in the phase-by-phase motion solve (`_Checker.motions_between_keyframes`): a
-trajectory whose keyframes do not change is first held on its straight line, the factors that
+"""Idle motions in the phase-by-phase motion solve
+(`FeasibilityCheck.motions_between_keyframes`): a trajectory whose keyframes do not change is first held on its straight line, the factors that
 then only read fixed values are checked once with numpy and left out of the phase NLP, and a
 phase where that fails is solved again with the trajectory free. Checked on the toy with two
 blocks (one moves while the other waits) against the independent re-check of the solution."""
@@ -8,8 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gnppdsl.solve import loop
-from gnppdsl.solve.loop import SolveOptions, solve_compiled
+from gnppdsl.solve.feasibility_check import FeasibilityCheck
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.motions import IDLE_MOTION
+from gnppdsl.solve.options import SolveOptions
 from solve_checks import check_solution
 
 
@@ -30,7 +32,7 @@ def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_
     from gnppdsl.nlp.feasibility import FeasibilitySolver
 
     seen_idle, phase_graphs = [], []
-    real_idle = loop._Checker.idle_motions
+    real_idle = FeasibilityCheck.idle_motions
     real_solve = FeasibilitySolver.solve
 
     def spy_idle(self, s, i):
@@ -43,7 +45,7 @@ def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_
             phase_graphs.append(g)
         return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed, **kw)
 
-    monkeypatch.setattr(loop._Checker, "idle_motions", spy_idle)
+    monkeypatch.setattr(FeasibilityCheck, "idle_motions", spy_idle)
     monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
     compiled = _toy()
     _solve(compiled)
@@ -53,7 +55,7 @@ def test_waiting_trajectories_are_held_on_the_straight_line_and_left_out_of_the_
             pts = x.reshape(v.waypoints, v.point_dim)
             # a straight line between keyframes that differ by at most IDLE_MOTION
             assert np.allclose(np.diff(pts, 2, axis=0), 0.0, atol=1e-12)
-            assert np.max(np.abs(pts[-1] - pts[0])) <= loop.IDLE_MOTION
+            assert np.max(np.abs(pts[-1] - pts[0])) <= IDLE_MOTION
     # the phase NLPs never carry a factor whose variables are all fixed
     assert phase_graphs
     for g in phase_graphs:
@@ -65,9 +67,9 @@ def test_a_held_trajectory_that_breaks_a_factor_is_solved_again_free(monkeypatch
     """idle_motions is forced to propose a wrong line (shifted off its keyframes): the constant
     factors are violated, so every such phase is solved again with the trajectory free, and the
     answer is the same valid solution."""
-    real_idle = loop._Checker.idle_motions
+    real_idle = FeasibilityCheck.idle_motions
     retried = []
-    real_motion = loop._Checker.solve_motion
+    real_motion = FeasibilityCheck.solve_motion
 
     def shifted(self, s, i):
         return {v: x + 0.5 for v, x in real_idle(self, s, i).items()}
@@ -77,8 +79,8 @@ def test_a_held_trajectory_that_breaks_a_factor_is_solved_again_free(monkeypatch
         retried.append((bool(idle), r is None))
         return r
 
-    monkeypatch.setattr(loop._Checker, "idle_motions", shifted)
-    monkeypatch.setattr(loop._Checker, "solve_motion", spy_motion)
+    monkeypatch.setattr(FeasibilityCheck, "idle_motions", shifted)
+    monkeypatch.setattr(FeasibilityCheck, "solve_motion", spy_motion)
     _solve(_toy())
     assert (True, True) in retried                    # the held try was refused by numpy
     assert (False, False) in retried                  # and the phase solved free
@@ -91,7 +93,7 @@ def test_a_phase_whose_straight_line_start_satisfies_it_needs_no_nlp(monkeypatch
     from gnppdsl.nlp.feasibility import FeasibilitySolver
 
     real_solve = FeasibilitySolver.solve
-    real_motion = loop._Checker.solve_motion
+    real_motion = FeasibilityCheck.solve_motion
     phase_nlps, answers = [], []
 
     def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0, **kw):
@@ -105,7 +107,7 @@ def test_a_phase_whose_straight_line_start_satisfies_it_needs_no_nlp(monkeypatch
         return r
 
     monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
-    monkeypatch.setattr(loop._Checker, "solve_motion", spy_motion)
+    monkeypatch.setattr(FeasibilityCheck, "solve_motion", spy_motion)
     _solve(_toy())
     assert answers and all(a == "its start satisfies it" for a in answers), answers
     assert not phase_nlps

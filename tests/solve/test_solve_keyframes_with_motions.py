@@ -1,4 +1,4 @@
-"""Motions and keyframes in the solve loop (`_Checker.motions_between_keyframes`,
+"""Motions and keyframes in the solve loop (`FeasibilityCheck.motions_between_keyframes`,
 `keyframes_with_motions`, `consistent_keyframes`, `overturned`), on the 1-D toy with
 trajectories: a motion that cannot be found between fixed keyframes is solved together with the
 keyframes instead of sending the plan to the joint solve of every motion; keyframes gathered
@@ -14,8 +14,11 @@ import pytest
 
 from gnppdsl.nlp.evaluate import max_violation
 from gnppdsl.nlp.feasibility import FeasibilitySolver
-from gnppdsl.solve import loop
-from gnppdsl.solve.loop import SolveOptions, solve_compiled
+from gnppdsl.solve import motions
+from gnppdsl.solve.check_memory import StampedValues
+from gnppdsl.solve.feasibility_check import equality_pair, FeasibilityCheck
+from gnppdsl.solve.loop import Loop, solve_compiled
+from gnppdsl.solve.options import SolveOptions
 from solve_checks import check_solution
 from solve_lies import lie_when
 from solve_toy import occupied_problem
@@ -69,7 +72,7 @@ def test_a_motion_out_of_reach_between_fixed_keyframes_is_solved_with_the_keyfra
 def test_without_keyframes_with_motions_the_plan_goes_to_the_joint_solve(monkeypatch):
     """The counterfactual of the test above (it can fail): with no motion allowed to join the
     keyframes, the same plan is solved by the joint NLP of all its motions."""
-    monkeypatch.setattr(loop, "MAX_JOINED_MOTIONS", 0)
+    monkeypatch.setattr(motions, "MAX_JOINED_MOTIONS", 0)
     seen = _spy_nlps(monkeypatch)
     _solved(_far_keyframes())
     assert not [s for s in seen if "{keyframes+motions" in s[0]]
@@ -83,7 +86,7 @@ def test_a_plan_whose_keyframes_prove_feasible_is_solved_again_not_searched(monk
     its motions, and no slice of it with trajectories goes through Alg. 1's search. Without
     `overturned` (the counterfactual) it is searched slice by slice."""
     if not overturn:
-        monkeypatch.setattr(loop._Checker, "overturned", lambda self, key: False)
+        monkeypatch.setattr(FeasibilityCheck, "overturned", lambda self, key: False)
     # the first feasible verdict on the 4-step plan's mode switches becomes a one-start
     # 'infeasible' whose convergence point is away from the solution (a stuck start)
     lies = lie_when(monkeypatch, lambda checker, g: g.name == "G[modes]" and checker.graph.steps == (0, 4),
@@ -97,7 +100,7 @@ def test_a_plan_whose_keyframes_prove_feasible_is_solved_again_not_searched(monk
 
 def _checker_on_the_toy_plan():
     compiled = occupied_problem(waypoints=4)
-    run = loop._Run(compiled, OPTIONS, None)
+    run = Loop(compiled, OPTIONS, None)
     task = compiled.task
     names = ["pick(b2, g, s2)", "place(b2, g, side)", "pick(b1, g, s1)", "place(b1, g, target)"]
     state, states = list(task.initial), [tuple(task.initial)]
@@ -107,7 +110,8 @@ def _checker_on_the_toy_plan():
             state[e.var] = e.value
         states.append(tuple(state))
     graph = run.build_graph(states)
-    return run, loop._Checker(run, run.new_solver(), graph, use_db=False), graph.apply_relaxation({"traj"}, "modes")
+    checker = FeasibilityCheck(run, run.new_solver(), graph, use_db=False)
+    return run, checker, graph.apply_relaxation({"traj"}, "modes")
 
 
 def _violation(run, g, values) -> float:
@@ -123,7 +127,7 @@ def test_keyframes_from_two_solves_are_made_consistent_near_them():
     b2 = {v.step: v for v in modes.variables if v.args == ("b2",)}
     for i in (3, 4):
         mixed[b2[i]] = np.asarray(mixed[b2[i]]) + 0.2
-    checker.values = loop.StampedValues(mixed)
+    checker.values = StampedValues(mixed)
     assert _violation(run, modes, checker.values) > 0.1         # a `stay` row broken at the seam
     calls = run.nlp_calls
     checker.consistent_keyframes(modes, r0)
@@ -148,7 +152,7 @@ def test_keyframes_from_two_solves_are_made_consistent_near_them():
 def test_a_failed_repair_takes_the_keyframes_solution(monkeypatch):
     run, checker, modes = _checker_on_the_toy_plan()
     r0 = checker.solve(modes)
-    checker.values = loop.StampedValues({v: np.asarray(x) + 0.3 for v, x in checker.values.items()})
+    checker.values = StampedValues({v: np.asarray(x) + 0.3 for v, x in checker.values.items()})
     real = FeasibilitySolver.solve
     monkeypatch.setattr(FeasibilitySolver, "solve",
                         lambda self, g, *a, **k: replace(real(self, g, *a, **k), feasible=False))
@@ -158,18 +162,18 @@ def test_a_failed_repair_takes_the_keyframes_solution(monkeypatch):
 
 
 def test_warm_starts_follow_the_newest_value_along_equality_chains():
-    """`_Checker.warm_start`: where `self.values` mixes two solves across an equality factor
-    (`toy.same`: b2 stays in `side` from step 2 to 4), the whole chain starts from the value
+    """`FeasibilityCheck.warm_start`: where `self.values` mixes two solves across an equality
+    factor (`toy.same`: b2 stays in `side` from step 2 to 4), the whole chain starts from the value
     set last; variables on no chain keep their own values."""
     run, checker, modes = _checker_on_the_toy_plan()
     b = {(v.args[0], v.step): v for v in modes.variables}
-    pairs = [loop.equality_pair(modes.factor(ref)) for ref in modes.factor_refs]
+    pairs = [equality_pair(modes.factor(ref)) for ref in modes.factor_refs]
     chain = {frozenset(p) for p in pairs if p is not None and p[0].args == ("b2",)}
     assert chain == {frozenset({b["b2", 2], b["b2", 3]}), frozenset({b["b2", 3], b["b2", 4]})}
     # an inequality factor is no equality pair
-    assert all(loop.equality_pair(modes.factor(ref)) is None for ref in modes.factor_refs
+    assert all(equality_pair(modes.factor(ref)) is None for ref in modes.factor_refs
                if modes.factor(ref).template in ("toy.inside", "toy.apart"))
-    checker.values = loop.StampedValues({v: np.array([0.5 + 0.01 * v.step]) for v in modes.variables})
+    checker.values = StampedValues({v: np.array([0.5 + 0.01 * v.step]) for v in modes.variables})
     checker.values.update({b["b2", 3]: np.array([2.1])})            # a later solve of step 3 alone
     warm = checker.warm_start(modes)
     assert all(float(warm[b["b2", i]][0]) == 2.1 for i in (2, 3, 4))

@@ -1,5 +1,5 @@
-"""Alg. 1's search with one start per NLP (`SolveOptions.lazy_search`, `_Checker.confirm`):
-the conflict it returns gets the skipped random restarts before it is learnt, and when a
+"""Alg. 1's search with one start per NLP (`SolveOptions.lazy_search`,
+`FeasibilityCheck.confirm`): the conflict it returns gets the skipped random restarts before it is learnt, and when a
 restart finds it feasible the search is repeated with every verdict from all its starts.
 Checked on the planar examples against independent re-checks (plans, factors, conflicts by
 multi-start) and against the same solve without lazy search."""
@@ -9,12 +9,23 @@ from pathlib import Path
 
 import pytest
 
-from gnppdsl.solve import loop
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve import feasibility_check, plan_evaluation
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.feasibility_check import FeasibilityCheck
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
+from gnppdsl.solve.plan_evaluation import LAZY_RETRIES
 from solve_checks import check_conflict_infeasible, check_solution
 from solve_lies import lie_when
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
+
+
+def _large_above(monkeypatch, n: int) -> None:
+    """LAZY_MAX_FACTORS = n where the loop reads it: the check's one start for subgraphs above
+    it, and the evaluation's second opinion (`recheck`) for ranges above it."""
+    for module in (feasibility_check, plan_evaluation):
+        monkeypatch.setattr(module, "LAZY_MAX_FACTORS", n)
 
 
 @pytest.mark.parametrize("name,n", [("p3_occupied", 4), ("p6_clutter", 4)])
@@ -25,7 +36,7 @@ def test_lazy_and_strict_search_both_give_real_conflicts_and_the_same_length(nam
         res = _solve_checked(compiled, SolveOptions(switches="trn", time_limit=60, lazy_search=lazy), n)
         runs[lazy] = res.stats
     # no more NLPs are solved (a lazy verdict is the first start of the same solve, a certified
-    # one no solve at all: `_Checker.certify`, which only the lazy search uses)...
+    # one no solve at all: `FeasibilityCheck.certify`, which only the lazy search uses)...
     assert runs[True].nlp_solves <= runs[False].nlp_solves
     # ...from no more starts (a confirmed conflict may add one polish run of its best restart)
     assert runs[True].ipopt_runs <= runs[False].ipopt_runs + runs[True].conflicts
@@ -58,7 +69,7 @@ def test_large_subgraphs_from_one_start_give_real_conflicts_and_the_same_length(
     the search. With the threshold lowered so that the planar subgraphs count as large, the
     search does solve them from one start, and the answer and its conflicts are as real as
     with every start."""
-    monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
+    _large_above(monkeypatch, 2)
     compiled = load_and_compile(str(PLANAR / f"{name}.pntc"))
     from gnppdsl.nlp.feasibility import FeasibilitySolver
 
@@ -84,7 +95,7 @@ def test_a_wrong_one_start_verdict_on_a_large_subgraph_is_not_learnt(monkeypatch
     """Every feasible verdict on a large subgraph in the search is turned into a false
     'infeasible' (a stuck first start): the second opinion of `recheck` or the restarts of
     `confirm` catch it; the answer is the same and every conflict is real."""
-    monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
+    _large_above(monkeypatch, 2)
     lies = lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2)
     # p4: its searches meet feasible subgraphs of more than 2 factors (p5's no longer do: the
     # support of its failed plans' convergence points is their conflict)
@@ -100,11 +111,11 @@ def test_a_repeated_search_keeps_one_start_for_large_subgraphs_once_then_gives_a
     `confirm`) force the repeats; the answer and its conflicts are checked as above."""
     import gnppdsl.nlp.subgraph as subgraph
 
-    monkeypatch.setattr(loop, "LAZY_MAX_FACTORS", 2)
+    _large_above(monkeypatch, 2)
     lie_when(monkeypatch, lambda checker, g: checker.lazy_large and g.n_factors > 2, once=False)
     forgets: dict = {}
     searches: list = []
-    real_forget, real_search = loop._Checker.forget_unconfirmed, subgraph.find_infeasible_subgraph
+    real_forget, real_search = FeasibilityCheck.forget_unconfirmed, subgraph.find_infeasible_subgraph
 
     def forget(self):
         forgets[id(self)] = forgets.get(id(self), 0) + 1
@@ -114,10 +125,10 @@ def test_a_repeated_search_keeps_one_start_for_large_subgraphs_once_then_gives_a
         searches.append((forgets.get(id(check), 0), check.lazy_large))
         return real_search(graph, *a, check=check, **k)
 
-    monkeypatch.setattr(loop._Checker, "forget_unconfirmed", forget)
+    monkeypatch.setattr(FeasibilityCheck, "forget_unconfirmed", forget)
     monkeypatch.setattr(subgraph, "find_infeasible_subgraph", search)
     res = _solve_checked(load_and_compile(str(PLANAR / "p4_pair.pntc")),
                          SolveOptions(switches="trn", time_limit=60), 6)
     assert res.stats.lazy_retries >= 2
-    assert {large for n, large in searches if n <= loop.LAZY_RETRIES} == {True}
-    assert {large for n, large in searches if n > loop.LAZY_RETRIES} == {False}
+    assert {large for n, large in searches if n <= LAZY_RETRIES} == {True}
+    assert {large for n, large in searches if n > LAZY_RETRIES} == {False}

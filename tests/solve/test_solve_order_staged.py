@@ -11,8 +11,12 @@ import numpy as np
 import pytest
 
 from gnppdsl.errors import UserError
-from gnppdsl.solve import loop
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.feasibility_check import FeasibilityCheck
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
+from gnppdsl.solve.plan_evaluation import PlanEvaluation, STAGED_FRACTION
+from gnppdsl.solve.plan_graph import plan_graph, TRAJ
 from solve_checks import check_conflict_infeasible, check_solution
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
@@ -26,7 +30,7 @@ class _G:
         self.factor_refs = [(tag, i) for i in range(n)]
 
     def apply_relaxation(self, dropped, name=""):
-        assert set(dropped) == {loop.TRAJ}
+        assert set(dropped) == {TRAJ}
         return _G(self._modes, tag="modes")
 
 
@@ -34,15 +38,15 @@ def test_staged_puts_small_levels_first_and_large_ones_after_the_full_graph():
     full = (None, _G(300, modes=100))
     a, b, c, d = ("a", _G(30, tag="a")), ("b", _G(50, tag="b")), ("c", _G(51, tag="c")), ("d", _G(90, tag="d"))
     # a and b have at most half of the 100 mode-switch factors; c and d more
-    assert loop._Run.staged(full[1], [a, b, c, d, full]) == [a, b, full, c, d, full]
+    assert PlanEvaluation.staged(full[1], [a, b, c, d, full]) == [a, b, full, c, d, full]
     # no large level: the full graph once, last (Alg. 1 searches it if it is infeasible)
-    assert loop._Run.staged(full[1], [a, b, full]) == [a, b, full]
+    assert PlanEvaluation.staged(full[1], [a, b, full]) == [a, b, full]
     # no trajectories: the mode-switch graph is the full graph
     plain = (None, _G(80, modes=0))
-    assert loop._Run.staged(plain[1], [a, c, plain]) == [a, plain, c, plain]
+    assert PlanEvaluation.staged(plain[1], [a, c, plain]) == [a, plain, c, plain]
     # a large level that is the mode-switch graph itself is the only one searched
     modes_level = ("no_traj", _G(100, tag="modes"))
-    assert loop._Run.staged(full[1], [a, c, d, modes_level, full]) == [a, full, modes_level, full]
+    assert PlanEvaluation.staged(full[1], [a, c, d, modes_level, full]) == [a, full, modes_level, full]
 
 
 def test_staged_weighs_levels_by_the_cost_it_is_given():
@@ -52,9 +56,9 @@ def test_staged_weighs_levels_by_the_cost_it_is_given():
     full = (None, _G(300, modes=100))
     cheap, dear = ("cheap", _G(80, tag="cheap")), ("dear", _G(20, tag="dear"))
     cost = {"cheap": 100.0, "dear": 900.0, "modes": 1000.0}
-    by_cost = loop._Run.staged(full[1], [cheap, dear, full], lambda g: cost[g.factor_refs[0][0]])
+    by_cost = PlanEvaluation.staged(full[1], [cheap, dear, full], lambda g: cost[g.factor_refs[0][0]])
     assert by_cost == [cheap, full, dear, full]
-    assert loop._Run.staged(full[1], [cheap, dear, full]) == [dear, full, cheap, full]   # by factors
+    assert PlanEvaluation.staged(full[1], [cheap, dear, full]) == [dear, full, cheap, full]   # by factors
 
 
 def test_on_lab3_the_level_without_collisions_goes_before_the_full_graph():
@@ -67,17 +71,17 @@ def test_on_lab3_the_level_without_collisions_goes_before_the_full_graph():
 
     c = load_and_compile(str(PLANAR.parent / "lab" / "lab3.pntc"))
     states = plan_states(c.task, parse_plan(c.task, "pick(b5, right_arm, table); put(b5, right_arm, pad_l)"))
-    g = loop.plan_graph(c.factory, states)
+    g = plan_graph(c.factory, states)
     levels = [(r, g.apply_relaxation(r.dropped, r.name)) for r in c.relaxations if r.dropped] + [(None, g)]
     names = {id(lv[1]): (lv[0].name if lv[0] else "full") for lv in levels}
     solver = FeasibilitySolver(c.geometry, compiler=c.body_compiler("off"))
-    modes = g.apply_relaxation({loop.TRAJ}, "modes")
+    modes = g.apply_relaxation({TRAJ}, "modes")
     no_col = dict((r.name, h) for r, h in levels[:-1])["no_col_traj"]
-    assert no_col.n_factors > loop.STAGED_FRACTION * modes.n_factors
-    assert solver.iteration_cost(no_col) <= loop.STAGED_FRACTION * solver.iteration_cost(modes)
+    assert no_col.n_factors > STAGED_FRACTION * modes.n_factors
+    assert solver.iteration_cost(no_col) <= STAGED_FRACTION * solver.iteration_cost(modes)
 
     def order(cost=None):
-        got = loop._Run.staged(g, levels) if cost is None else loop._Run.staged(g, levels, cost)
+        got = PlanEvaluation.staged(g, levels) if cost is None else PlanEvaluation.staged(g, levels, cost)
         return [names[id(h)] for _, h in got]
 
     by_cost, by_count = order(solver.iteration_cost), order()
@@ -175,7 +179,7 @@ def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, 
         return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed, **kw)
 
     results = []
-    real = loop._Checker.motions_between_keyframes
+    real = FeasibilityCheck.motions_between_keyframes
 
     def spy(self, g, trajs, warm):
         r = real(self, g, trajs, warm)
@@ -183,7 +187,7 @@ def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, 
         return r
 
     monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
-    monkeypatch.setattr(loop._Checker, "motions_between_keyframes", spy)
+    monkeypatch.setattr(FeasibilityCheck, "motions_between_keyframes", spy)
     compiled = _toy()
     res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=6, order=order))
     _check_toy(compiled, res)

@@ -23,7 +23,9 @@ if not hasattr(ir, "load_problem"):
     pytest.skip("gnppdsl.ir.load_problem is not available yet", allow_module_level=True)
 
 from gnppdsl.solve.brute import brute_force  # noqa: E402
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled  # noqa: E402
+from gnppdsl.solve.compiled import load_and_compile  # noqa: E402
+from gnppdsl.solve.loop import solve_compiled  # noqa: E402
+from gnppdsl.solve.options import SolveOptions  # noqa: E402
 
 _COMPILED: dict[str, object] = {}
 

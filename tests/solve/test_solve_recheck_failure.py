@@ -5,7 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from gnppdsl.nlp import evaluate
-from gnppdsl.solve.loop import SolveOptions, load_and_compile, solve_compiled
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.result import SOLVER_FAILURE
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"

@@ -10,7 +10,9 @@ import pytest
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.logic.planner import IncrementalPlanner
 from gnppdsl.logic.validate import plan_cost
-from gnppdsl.solve.loop import SolveOptions, _Run, load_and_compile
+from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.loop import Loop
+from gnppdsl.solve.options import SolveOptions
 
 MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 
@@ -18,7 +20,7 @@ MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 @pytest.fixture(scope="module")
 def run():
     compiled = load_and_compile([str(MOBILE / "sort2.pntc")])
-    return _Run(compiled, SolveOptions(algorithm="rlgp", time_limit=120).validated(), None)
+    return Loop(compiled, SolveOptions(algorithm="rlgp", time_limit=120).validated(), None)
 
 
 def test_travel_costs_choose_the_cheapest_shortest_plan(run):

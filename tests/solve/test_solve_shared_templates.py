@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gnppdsl.solve.loop import SolveOptions, solve_compiled
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 from solve_checks import check_solution
 
 

@@ -10,7 +10,8 @@ from solve_checks import check_conflict_infeasible, check_solution
 from solve_toy import occupied_problem, unsolvable_problem
 from gnppdsl.errors import UserError
 from gnppdsl.solve.brute import brute_force
-from gnppdsl.solve.loop import SolveOptions, solve_compiled
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.result import NO_PLAN, SOLVED, TIME_LIMIT
 
 ALGORITHMS = [("gnpp", "t"), ("gnpp", "tr"), ("gnpp", "trn"), ("gnpp", "trng"), ("gnpp", ""), ("oneway", "")]
@@ -121,7 +122,8 @@ def test_interpolation_and_keyframes():
     import numpy as np
 
     from gnppdsl.compile.factors import VarInstance
-    from gnppdsl.solve.loop import bound_violation, interpolate_trajectories, keyframe_of
+    from gnppdsl.solve.interpolation import interpolate_trajectories, keyframe_of
+    from gnppdsl.solve.plan_graph import bound_violation
 
     q0 = VarInstance("q", ("r",), 0, "R", 2)
     q1 = VarInstance("q", ("r",), 1, "R", 2)
@@ -162,9 +164,9 @@ def test_a_failed_joint_solve_of_feasible_components_is_never_a_conflict(monkeyp
     """Property 4.5: if every component of a relaxed graph is feasible, so is the graph. A
     solver that fails on the whole (here: forced to) must not produce a conflict."""
     from gnppdsl.nlp.feasibility import FeasibilityResult
-    from gnppdsl.solve import loop
+    from gnppdsl.solve.feasibility_check import FeasibilityCheck
 
-    real = loop._Checker.solve
+    real = FeasibilityCheck.solve
     failed = []
 
     def flaky(self, g):
@@ -175,7 +177,7 @@ def test_a_failed_joint_solve_of_feasible_components_is_never_a_conflict(monkeyp
             return r
         return real(self, g)
 
-    monkeypatch.setattr(loop._Checker, "solve", flaky)
+    monkeypatch.setattr(FeasibilityCheck, "solve", flaky)
     messages = []
     compiled = occupied_problem()
     # screening off: the relaxation's factors nearly hold at the full graph's convergence
@@ -194,9 +196,9 @@ def test_a_false_conflict_without_facts_is_refuted_not_learnt(monkeypatch):
     plan. Here the first plan's evaluation is forced to claim a feasible `always` factor as
     the conflict: the stricter confirmation solves it, so only that plan is blocked and the
     problem is still solved."""
-    from gnppdsl.solve import loop
+    from gnppdsl.solve.loop import Loop
 
-    real = loop._Run.evaluate
+    real = Loop.evaluate
     forced = []
 
     def lying(self, graph, use_db):
@@ -207,7 +209,7 @@ def test_a_false_conflict_without_facts_is_refuted_not_learnt(monkeypatch):
             return ("conflict", (always[0],), "")
         return real(self, graph, use_db)
 
-    monkeypatch.setattr(loop._Run, "evaluate", lying)
+    monkeypatch.setattr(Loop, "evaluate", lying)
     compiled = occupied_problem()
     res = solve_compiled(compiled, SolveOptions(switches="trn", time_limit=60, max_horizon=6))
     assert forced and res.solved and res.stats.N == 4

@@ -1,0 +1,108 @@
+"""How to solve: `SolveOptions` (algorithm, switches, limits, the loop's modes), merged from a
+problem's `solver { }` settings and the caller's overrides; `overridden`, which sets options (the
+solver's, or the feasibility check's own modes) for the duration of one solve; `Progress`, the
+callback that receives the loop's messages.
+"""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+from typing import Any, Callable, Iterator
+
+from gnppdsl.errors import UserError
+from gnppdsl.ir.model import SOLVER_ORDERS as ORDERS
+from gnppdsl.ir.model import SolverSettings
+
+
+Progress = Callable[[str], None]   # may also have `watch(stats)`: given the solve's live Stats once
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """How to solve: algorithm, switches, limits. `from_settings` merges the problem's
+    `solver { }` settings with command-line overrides (None = keep)."""
+
+    algorithm: str = "gnpp"          # "gnpp" | "oneway" | "rlgp" (GNPP + reachability graph)
+    switches: str = "trn"            # subset of "trng" (gnpp only)
+    time_limit: float = 60.0
+    seed: int = 0
+    max_horizon: int = 12
+    tolerance: float = 1e-6
+    database: str | None = None      # SQLite path (implies switch g)
+    max_iter: int = 1000
+    restarts: int | None = None      # extra random starts after an infeasible verdict (None: nlp default)
+    nlp: str = "ipopt"               # casadi plugin: ipopt | sqpmethod
+    check_tolerance: float | None = None   # independent re-check threshold (default: tolerance)
+    screen_tolerance: float = 1e-4   # gnpp: skip a relaxation level tried after an infeasible full
+                                     # graph whose factors all hold this well at that graph's
+                                     # convergence point (full_first, staged; 0: off)
+    order: str = "full_first"        # gnpp: "full_first" = solve the plan's graph-NLP, run Alg. 1
+                                     # only when it is infeasible (Fig. 3, step 3); "relaxed_first"
+                                     # = relaxations loose -> tight before the full graph;
+                                     # "staged" = the small relaxations first, then the full
+                                     # graph, the others only to find a conflict (see `evaluate`)
+    jit: bool | None = None          # large derivative kernels as compiled C (gnppdsl.nlp.jit):
+                                     # None: compiled in the background for later solves, True:
+                                     # compiled now, False: never (`jit.mode`)
+    distance_curvature: bool = True  # ipopt's Hessian includes the curvature of signed-distance rows
+                                     # (`SolverOptions.distance_curvature`)
+    lazy_search: bool = True         # gnpp: Alg. 1's search solves each small subgraph from one
+                                     # start, only the conflict gets the restarts (`FeasibilityCheck.confirm`);
+                                     # on since session 9 (with held objects' initial guesses): lab5
+                                     # 13.2 -> 4.5 s, lab3 4.9 -> 4.0 s, lab4 4.4 -> 5.0 s, planar
+                                     # NLPs the same but p7 (29.7 -> 32); before it, lab5 seed 0
+                                     # took 4x (a wrong one-start verdict to undo)
+    lazy_large: bool = True          # gnpp: ... and each subgraph above LAZY_MAX_FACTORS factors: its
+                                     # verdict gets the second opinion of `recheck` when it ends the
+                                     # time search, the restarts when it is the conflict (see
+                                     # LAZY_MAX_FACTORS for why)
+    certify: bool = True             # gnpp: the lazy search decides a subgraph of a cheap graph
+                                     # that failed from one start at that graph's convergence
+                                     # point when it certifies it (no NLP), and confirms it with
+                                     # the graph's restarts (`FeasibilityCheck.certify`); planar p5
+                                     # 5 -> 3 NLPs, p4 10 -> 6
+
+    @staticmethod
+    def from_settings(settings: SolverSettings | None = None, **overrides: Any) -> "SolveOptions":
+        base = SolveOptions()
+        if settings is not None:
+            kw = {}
+            for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
+                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature"):
+                if hasattr(settings, name) and getattr(settings, name) is not None:
+                    kw[name] = getattr(settings, name)
+            base = replace(base, **kw)
+        opts = replace(base, **{k: v for k, v in overrides.items() if v is not None})
+        return opts.validated()
+
+    def validated(self) -> "SolveOptions":
+        if self.algorithm not in ("gnpp", "oneway", "rlgp"):
+            raise UserError(f"algorithm '{self.algorithm}' is not available (use gnpp, oneway or rlgp)")
+        if set(self.switches) - set("trng"):
+            raise UserError(f"switches '{self.switches}' are not a subset of 'trng'")
+        if self.algorithm == "oneway" and self.database:
+            raise UserError("a subgraph database (--db) needs the gnpp algorithm")
+        if self.time_limit <= 0:
+            raise UserError("the time limit must be positive")
+        if self.order not in ORDERS:
+            raise UserError(f"order '{self.order}' is not available (use {', '.join(ORDERS[:-1])} "
+                            f"or {ORDERS[-1]})")
+        switches = "".join(c for c in "trng" if c in self.switches)
+        if self.database and "g" not in switches:
+            switches += "g"
+        return replace(self, switches=switches if self.algorithm != "oneway" else "")
+
+
+@contextmanager
+def overridden(obj: object, **attrs: object) -> Iterator[object]:
+    """`obj`'s attributes set to `attrs` for the duration of the block, restored afterwards
+    (also on an exception, e.g. the time limit): the checker switches its solver's restarts
+    and polish, and its own one-start modes, per solve."""
+    saved = {name: getattr(obj, name) for name in attrs}
+    for name, value in attrs.items():
+        setattr(obj, name, value)
+    try:
+        yield obj
+    finally:
+        for name, value in saved.items():
+            setattr(obj, name, value)

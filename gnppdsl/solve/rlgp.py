@@ -1,0 +1,78 @@
+"""The R-LGP variant of the loop (paper 002): the reachability graphs of the problem's
+`reachability` blocks give the planner end-effector travel costs (Alg. 1's heuristicCost) and the
+trajectories a block names in `warmstart` their collision-checked paths (getWaypoints).
+"""
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from gnppdsl.compile.factors import VarInstance
+from gnppdsl.compile.sas import SASTask
+from gnppdsl.errors import UserError
+from gnppdsl.solve.compiled import Compiled
+from gnppdsl.solve.interpolation import keyframe_of
+from gnppdsl.solve.result import Stats
+
+if TYPE_CHECKING:  # pragma: no cover
+    from gnppdsl.ir.model import Reachability
+    from gnppdsl.reach.graph import ReachabilityGraph
+
+
+class ReachabilityCosts:
+    """The R-LGP part of a solve (`run.Run` derives from it); `reach` maps a robot to its
+    reachability graph and the `reachability` block that built it."""
+
+    compiled: Compiled
+    stats: Stats
+    reach: dict[str, tuple[ReachabilityGraph, Reachability]]
+
+    def with_reachability_costs(self, task: SASTask) -> SASTask:
+        """Build the reachability graph of every `reachability` block (Sec. IV) and return the
+        task with its end-effector travel costs as `pair_costs` (Alg. 1's heuristicCost): the
+        planner then proposes, among the shortest plans, the one with the least travel."""
+        from dataclasses import replace as dc_replace
+
+        from gnppdsl.reach.integration import build_from_problem, pair_costs_from_problem
+
+        problem = self.compiled.problem
+        blocks = tuple(getattr(problem, "reachability", ()) or ())
+        if not blocks:
+            raise UserError(f"algorithm rlgp: problem '{self.compiled.name}' has no `reachability` block")
+        t0 = time.perf_counter()
+        costs: dict = dict(task.pair_costs)
+        for block in blocks:
+            graph = build_from_problem(problem, block.name)
+            self.reach[block.robot] = (graph, block)
+            for pair, c in pair_costs_from_problem(problem, task, graph, block.name).items():
+                costs[pair] = costs.get(pair, 0) + c
+            self.say(f"reachability graph '{block.name}' for {block.robot}: {graph.num_samples} samples")
+        self.stats.reach_time += time.perf_counter() - t0
+        return dc_replace(task, pair_costs=costs)
+
+    def reach_warmstart(self, traj: VarInstance, values: dict) -> np.ndarray | None:
+        """Alg. 1's getWaypoints: the graph's collision-checked path between the trajectory's
+        keyframes, for trajectories a block names in `warmstart` (None: interpolate instead)."""
+        if not traj.args or traj.args[0] not in self.reach or self.remaining() <= 0:
+            return None
+        graph, block = self.reach[traj.args[0]]
+        if not any(w.traj == traj.kind for w in getattr(block, "warmstarts", ())):
+            return None
+        key = keyframe_of(traj, values.keys())
+        by = {(v.key, v.step): v for v in values}
+        a, b = by.get((key, traj.step)), by.get((key, traj.step + 1))
+        if a is None or b is None:
+            return None
+        from gnppdsl.reach.integration import warmstart_waypoints
+
+        t0 = time.perf_counter()
+        try:
+            pts = warmstart_waypoints(graph, values[a], values[b], traj.waypoints)
+        except (ValueError, IndexError):
+            return None
+        finally:
+            self.stats.reach_time += time.perf_counter() - t0
+        pts = np.asarray(pts, float)
+        return pts.reshape(-1) if pts.size == traj.dim else None

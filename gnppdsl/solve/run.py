@@ -1,0 +1,243 @@
+"""One solve's state and services, shared by the loops (GNPP, One-way, R-LGP): the deadline,
+statistics, the incremental planner, one FeasibilitySolver per plan graph, the subgraph database,
+conflicts handed to the planner, the independent re-check of a solution and the `Result`.
+"""
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any, Iterable, Sequence
+
+import numpy as np
+
+from gnppdsl.compile.factors import FactorInstance, VarInstance
+from gnppdsl.conflicts.database import SubgraphDatabase, names_of
+from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
+from gnppdsl.nlp.graph import GraphNLP
+from gnppdsl.solve.compiled import Compiled
+from gnppdsl.solve.deadline import TimeUp, deadline_solver
+from gnppdsl.solve.options import Progress, SolveOptions
+from gnppdsl.solve.plan_graph import bound_violation, plan_graph
+from gnppdsl.solve.result import NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats, Step
+from gnppdsl.solve.rlgp import ReachabilityCosts
+
+if TYPE_CHECKING:  # pragma: no cover  (clingo, casadi: imported when a solve starts)
+    from gnppdsl.logic.planner import Plan, PlanResult
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+
+
+class Run(ReachabilityCosts):
+    """What one solve holds while its loop runs (see the module docstring); the evaluation of
+    a plan's graph (`plan_evaluation.PlanEvaluation`) and the loops (`loop.Loop`) derive from it."""
+
+    def __init__(self, compiled: Compiled, options: SolveOptions, progress: Progress | None):
+        from gnppdsl.logic.planner import IncrementalPlanner
+
+        self.compiled, self.options, self.progress = compiled, options, progress
+        self.task = compiled.task
+        self.start = time.perf_counter()
+        self.cpu_start = time.process_time()
+        self.children_cpu_start = _children_cpu()
+        self.deadline = self.start + options.time_limit
+        self.stats = Stats()
+        watch = getattr(progress, "watch", None)   # a live status line reads the counters (cli/status.py)
+        if watch is not None:
+            watch(self.stats)
+        self.conflicts: list[Conflict] = []
+        self.reach = {}                   # robot -> (ReachabilityGraph, block)
+        if options.algorithm == "rlgp":
+            self.task = self.with_reachability_costs(self.task)
+        t0 = time.perf_counter()
+        self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
+        self.stats.logic_time += time.perf_counter() - t0
+        from gnppdsl.nlp import jit
+
+        forget = getattr(compiled.geometry, "forget_evaluations", None)
+        if forget is not None:                 # a solve starts with no remembered evaluations
+            forget()
+        self.compiler = compiled.body_compiler(jit.mode(options.jit))
+        self.kernels = self.compiler.kernels
+        self.kernel_base = (0, 0.0, 0, 0)   # kernels compiled, compile time, failed, queued before this run
+        if self.kernels is not None:
+            self.kernels.deadline = self.deadline
+            self.kernel_base = (self.kernels.compiled, self.kernels.compile_time, self.kernels.failed,
+                                self.kernels.queued)
+        self.solvers: list[FeasibilitySolver] = []      # every FeasibilitySolver of this run (ipopt runs, time)
+        self.nlp_calls = 0                # NLPs solved through FeasibilityCheck.solve
+        self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
+        self.db: SubgraphDatabase | None = None
+        if "g" in options.switches:
+            self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
+                                       fingerprint=compiled.fingerprint, object_key=compiled.object_key)
+
+    def say(self, msg: str) -> None:
+        if self.progress is not None:
+            self.progress(msg)
+
+    def remaining(self) -> float:
+        return self.deadline - time.perf_counter()
+
+    def new_solver(self) -> FeasibilitySolver:
+        """One FeasibilitySolver per plan graph (its assembled-NLP cache is keyed by vertex
+        sets whose factor references are positions in *this* graph's factor list); the casadi
+        Function cache (BodyCompiler) is shared by the whole run."""
+        from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+
+        kw = {} if self.options.restarts is None else {"restarts": self.options.restarts}
+        opts = SolverOptions(tolerance=self.options.tolerance, max_iter=self.options.max_iter,
+                             plugin=self.options.nlp, time_limit=max(0.05, self.remaining()),
+                             distance_curvature=self.options.distance_curvature, **kw)
+        solver = deadline_solver(FeasibilitySolver)(self.compiled.geometry, opts, compiler=self.compiler)
+        solver.deadline = self.deadline
+        self.solvers.append(solver)
+        return solver
+
+    def build_graph(self, states: Sequence[Sequence[int]]) -> GraphNLP:
+        t0 = time.perf_counter()
+        graph = plan_graph(self.compiled.factory, states)
+        self.stats.factory_time += time.perf_counter() - t0
+        return graph
+
+    def next_plan(self, enumerate_: bool) -> PlanResult:
+        t0 = time.perf_counter()
+        if enumerate_:
+            res = self.planner.next_plan(time_limit=max(0.0, self.remaining()))
+        else:
+            res = self.planner.shortest_plan(time_limit=max(0.0, self.remaining()),
+                                             minimize_cost=self.options.algorithm == "rlgp")
+        self.stats.logic_time += time.perf_counter() - t0
+        return res
+    sweeping_restarts = 8                 # random starts behind a conflict without facts
+
+    def confirm_sweeping(self, sub_factors: Sequence[FactorInstance]) -> bool:
+        """A conflict whose partial states hold no fact (its factors come from `always` rules
+        only) matches every plan long enough: accepting it ends the search with "no plan".
+        Such a sweeping claim gets a stricter check first: the subgraph is solved again from
+        `sweeping_restarts` random starts; any solution refutes it (a false infeasible verdict,
+        e.g. a local minimum). True if the conflict is not sweeping or stays infeasible."""
+        from gnppdsl.nlp.graph import GraphNLP
+
+        if any(p.facts for p in to_partial_states(sub_factors)):
+            return True
+        solver = self.new_solver()
+        solver.options.restarts = max(solver.options.restarts, self.sweeping_restarts)
+        solver.options.noise = max(solver.options.noise, 1.0)
+        r = solver.solve(GraphNLP(list(sub_factors)), seed=self.options.seed + 1)
+        self.nlp_calls += 1
+        if not r.feasible and time.perf_counter() >= self.deadline:
+            raise TimeUp()                  # cut short: not a confirmation
+        return not r.feasible
+
+    def add_conflict(self, plan: Plan, sub_factors: Sequence[FactorInstance], source: str,
+                     relaxation: str) -> None:
+        seq = to_partial_states(sub_factors)
+        first = min(f.step for f in sub_factors)
+        # the conflict must hold in the plan that produced it, else it would not exclude it
+        holds = all(p.holds_in(plan.states[first + l]) for l, p in enumerate(seq))
+        if not holds:
+            raise AssertionError(f"conflict {seq} does not hold in the plan it came from at step {first}")
+        t0 = time.perf_counter()
+        new = self.planner.add_conflict(seq)
+        if not new:
+            # the planner already forbids it, yet proposed this plan: never loop forever
+            self.planner.block_plan(plan)
+        self.stats.logic_time += time.perf_counter() - t0
+        c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
+                     relaxation, self.stats.plans, first, named=names_of(self.task, seq),
+                     subgraph=tuple(sub_factors))
+        self.conflicts.append(c)
+        self.stats.conflicts += 1
+        self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}")
+
+    def result(self, status: str, message: str, **kw: Any) -> Result:
+        self.stats.total_time = time.perf_counter() - self.start
+        # CPU of this process and of the child processes it waited for (the C compiler of the
+        # setting jit: 0 with a warm cache; nothing else in a solve starts processes)
+        self.stats.cpu_time = time.process_time() - self.cpu_start + _children_cpu() - self.children_cpu_start
+        if self.kernels is not None:
+            self.stats.kernels_native = self.kernels.loaded
+            self.stats.kernels_compiled = self.kernels.compiled - self.kernel_base[0]
+            self.stats.kernel_compile_time = self.kernels.compile_time - self.kernel_base[1]
+            self.stats.kernels_failed = self.kernels.failed - self.kernel_base[2]
+            self.stats.kernels_queued = self.kernels.queued - self.kernel_base[3]
+            self.stats.kernel_error = self.kernels.last_error if self.stats.kernels_failed else ""
+        # NLPs = feasibility problems solved (each may take several ipopt runs: restarts and
+        # a polish before an infeasible verdict, counted in ipopt_runs); time of all of them
+        self.stats.nlp_solves = self.nlp_calls + self.heuristic_solves
+        self.stats.ipopt_runs = sum(s.solves for s in self.solvers)
+        self.stats.nlp_time = sum(s.solve_time for s in self.solvers)
+        if self.db is not None:
+            self.db.close()
+        return Result(problem=self.compiled.name, domain=self.compiled.domain_name,
+                      algorithm=self.options.algorithm, switches=self.options.switches,
+                      seed=self.options.seed, status=status, message=message,
+                      conflicts=self.conflicts, stats=self.stats, time_limit=self.options.time_limit, **kw)
+
+    def stop_result(self, res: PlanResult) -> Result:
+        from gnppdsl.logic.planner import Status
+
+        if res.status is Status.TIMEOUT or self.remaining() <= 0:
+            return self.result(TIME_LIMIT, f"time limit of {self.options.time_limit:g} s reached "
+                                           f"after {self.stats.plans} plans")
+        return self.result(NO_PLAN, res.message or "no plan")
+
+    def violation(self, factors: Sequence[FactorInstance], point: dict,
+                  variables: Iterable[VarInstance] = ()) -> float:
+        """Largest violation of `factors` (and of the bounds of `variables`) at `point` by the
+        independent numpy evaluator; inf when a primitive cannot be evaluated there (the
+        caller then solves instead). Counted in `stats.reuse_time`."""
+        from gnppdsl.nlp.evaluate import max_violation
+
+        t0 = time.perf_counter()
+        try:
+            worst = max_violation(factors, point, self.compiled.geometry)[0] if factors else 0.0
+        except Exception:
+            return np.inf
+        finally:
+            self.stats.reuse_time += time.perf_counter() - t0
+        return max(worst, bound_violation(variables, point))
+
+    def solution(self, plan: Plan, graph: GraphNLP, values: dict[VarInstance, np.ndarray]) -> Result:
+        from gnppdsl.nlp.evaluate import EvaluationError, max_violation
+
+        factors = graph.factor_instances
+        try:
+            worst, arg = max_violation(factors, values, self.compiled.geometry)
+        except EvaluationError as err:    # a body the numpy re-check cannot evaluate
+            return self.result(SOLVER_FAILURE, f"the solution cannot be re-checked independently: {err}",
+                               plan=list(plan.names))
+        bound_worst = bound_violation(graph.variables, values)
+        worst = max(worst, bound_worst)
+        self.stats.max_violation = worst
+        self.stats.N = len(plan)
+        self.stats.factors = len(factors)
+        self.stats.variables = len(graph.variables)
+        steps = []
+        for i, s in enumerate(plan.states):
+            st = Step(i, plan.names[i - 1] if i > 0 else None, self.task.state_str(s))
+            for v in graph.variables:
+                if v.step != i or v not in values:
+                    continue
+                x = np.asarray(values[v], float).reshape(-1)
+                if v.waypoints:
+                    st.trajectories[v.key] = x.reshape(v.waypoints, v.point_dim).tolist()
+                else:
+                    st.values[v.key] = x.tolist()
+            steps.append(st)
+        tol = self.options.check_tolerance or self.options.tolerance
+        extras = {"task": self.task, "plan": plan, "graph": graph, "values": values}
+        if not worst <= tol:
+            what = arg.label if arg is not None and worst > bound_worst else "a variable bound"
+            return self.result(SOLVER_FAILURE,
+                               f"the solver's solution fails the independent re-check: {what} "
+                               f"violated by {worst:.3g} > {tol:g}",
+                               plan=list(plan.names), steps=steps, extras=extras)
+        return self.result(SOLVED, f"solved with {len(plan)} actions after {self.stats.plans} plans",
+                           plan=list(plan.names), steps=steps, extras=extras)
+
+
+def _children_cpu() -> float:
+    """CPU seconds of finished child processes (the C compiler of `gnppdsl.nlp.jit`)."""
+    import resource
+
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
