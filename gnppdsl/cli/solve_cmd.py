@@ -100,7 +100,7 @@ def _render(compiled, result, directory: str) -> None:
     from gnppdsl.solve.keyframes import render_solution
 
     files = render_solution(compiled, result, directory)
-    emit(f"rendered {len(files)} keyframes to {directory}")
+    emit(f"rendered {len(files) - 1} keyframes and the animation plan.gif to {directory}")
 
 
 def emit(text: str) -> None:

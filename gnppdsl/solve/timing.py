@@ -169,6 +169,39 @@ def result_states(task: Any, plan: Sequence[str]) -> list[list[int]]:
     return [list(s) for s in plan_states(task, parse_plan(task, "\n".join(plan)))]
 
 
+def motion_samples(steps: Sequence[dict], robots: dict[str, dict], interpolation: int = 8
+                   ) -> list[tuple[float, int, dict[str, np.ndarray]]]:
+    """The instants of a timed plan (JSON steps and `robots` of an annotated result): each
+    keyframe, each interior trajectory waypoint and, in a phase without trajectories,
+    `interpolation - 1` points with the robot configurations interpolated linearly (the motion
+    the time stamps assume). Each as (time, step i whose kinematic chain applies, {configuration
+    key: the value replacing that of step i})."""
+    samples: list[tuple[float, int, dict[str, np.ndarray]]] = []
+    for i, st in enumerate(steps):
+        samples.append((st["time"], i, {}))
+        if i == len(steps) - 1:
+            break
+        nxt = steps[i + 1]
+        traj = {info["configuration"]: (np.asarray(st["trajectories"][info["trajectory"]], float),
+                                         st["trajectory_times"][info["trajectory"]])
+                for info in robots.values() if info.get("trajectory") in st["trajectories"]}
+        if traj:
+            n = max(len(t) for _, t in traj.values())
+            for k in range(1, n - 1):
+                t = max(ts[min(k, len(ts) - 1)] for _, ts in traj.values())
+                samples.append((t, i, {key: pts[min(k, len(pts) - 1)] for key, (pts, _) in traj.items()}))
+            continue
+        for k in range(1, interpolation):
+            a = k / interpolation
+            over = {}
+            for info in robots.values():
+                key = info.get("configuration")
+                if key in st["values"] and key in nxt["values"]:
+                    over[key] = (1 - a) * np.asarray(st["values"][key]) + a * np.asarray(nxt["values"][key])
+            samples.append(((1 - a) * st["time"] + a * nxt["time"], i, over))
+    return samples
+
+
 ValueOf = Callable[[str, int], "np.ndarray | None"]
 
 

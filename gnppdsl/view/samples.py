@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from gnppdsl.geometry.robots import se3_to_matrix
-from gnppdsl.solve.timing import result_states, world_poses
+from gnppdsl.solve.timing import motion_samples, result_states, world_poses
 
 INTERPOLATION = 8      # samples per phase without a trajectory
 
@@ -76,30 +76,7 @@ def sample_motion(result: dict[str, Any], compiled: Any) -> Samples:
     bodies = _scene_bodies(scene, problem)
     for r, vis in visuals.items():
         bodies += vis.bodies
-    # the sample list: (time, step i whose chain applies, {config key: value override})
-    samples: list[tuple[float, int, dict[str, np.ndarray]]] = []
-    for i, st in enumerate(steps):
-        samples.append((st["time"], i, {}))
-        if i == len(steps) - 1:
-            break
-        nxt = steps[i + 1]
-        traj = {info["configuration"]: (np.asarray(st["trajectories"][info["trajectory"]], float),
-                                         st["trajectory_times"][info["trajectory"]])
-                for info in robots.values() if info.get("trajectory") in st["trajectories"]}
-        if traj:
-            n = max(len(t) for _, t in traj.values())
-            for k in range(1, n - 1):
-                t = max(ts[min(k, len(ts) - 1)] for _, ts in traj.values())
-                samples.append((t, i, {key: pts[min(k, len(pts) - 1)] for key, (pts, _) in traj.items()}))
-            continue
-        for k in range(1, INTERPOLATION):
-            a = k / INTERPOLATION
-            over = {}
-            for info in robots.values():
-                key = info.get("configuration")
-                if key in st["values"] and key in nxt["values"]:
-                    over[key] = (1 - a) * np.asarray(st["values"][key]) + a * np.asarray(nxt["values"][key])
-            samples.append(((1 - a) * st["time"] + a * nxt["time"], i, over))
+    samples = motion_samples(steps, robots, INTERPOLATION)
     out = Samples([t for t, _, _ in samples], bodies, {}, [st["time"] for st in steps], planar)
     movable = [b for b in bodies if not b.static and b.owner not in visuals]
     heights = {b.owner: _height(b) for b in movable}
