@@ -61,31 +61,43 @@ def _polys(ctx, state: dict[str, Any], entities: frozenset | None = None) -> lis
 BASE_FOOTPRINT = (0.5, 0.5)     # m, a mobile base without a scene `base_size`
 
 
-def _mobile_bases(ctx, state: dict[str, Any], entities: frozenset | None) -> list[_Poly]:
-    """A box under every URDF robot whose root joint is planar (x, y, theta first): from the
-    floor to the root's height, footprint `base_size` (scene attribute) or BASE_FOOTPRINT."""
+def mobile_base(model, spec, q, base=None) -> tuple[tuple[float, float, float], np.ndarray] | None:
+    """The box drawn for a mobile base: a URDF robot (`RobotModel` `model`, `SceneRobot` `spec`)
+    whose root joint is planar (x, y, theta first) stands on a box from the floor to its root,
+    footprint `base_size` (scene attribute) or BASE_FOOTPRINT. Returns (size, world 4x4 of the
+    box centre), None for other robots. Why drawn at all: the URDF has no base body, so without
+    it the arm floats in the pictures and the viewer."""
     from gnppdsl.geometry.robots import se3_to_matrix
+    if not model.coords or model.coords[0].kind != "planar":
+        return None
+    x, y, th = np.asarray(q, float)[:3]
+    B = model.base if base is None else se3_to_matrix(base)
+    c, s_ = np.cos(th), np.sin(th)
+    J = np.eye(4)
+    J[:2, :2] = [[c, -s_], [s_, c]]
+    J[:2, 3] = (x, y)
+    T = B @ J
+    sx, sy = (tuple(spec.attributes.get("base_size", BASE_FOOTPRINT)) + BASE_FOOTPRINT)[:2]
+    h = max(float(T[2, 3]), 0.05)
+    C = T.copy()
+    C[2, 3] -= h / 2
+    return (float(sx), float(sy), h), C
+
+
+def _mobile_bases(ctx, state: dict[str, Any], entities: frozenset | None) -> list[_Poly]:
+    """A box under every mobile base (`mobile_base`)."""
     from gnppdsl.geometry.verify import robot_q_base, state_value
     out = []
     for name, spec in ctx.scene.robots.items():
         if spec.kind != "urdf" or (entities is not None and name not in entities):
             continue
-        model = ctx.robot(name)
-        if not model.coords or model.coords[0].kind != "planar":
-            continue
         q, base = robot_q_base(ctx, name, state_value(ctx, state, name))
-        x, y, th = q[:3]
-        B = se3_to_matrix(base)
-        c, s_ = np.cos(th), np.sin(th)
-        J = np.eye(4)
-        J[:2, :2] = [[c, -s_], [s_, c]]
-        J[:2, 3] = (x, y)
-        T = B @ J
-        sx, sy = (tuple(spec.attributes.get("base_size", BASE_FOOTPRINT)) + BASE_FOOTPRINT)[:2]
-        h = max(T[2, 3], 0.05)
-        corners = np.array([[u * sx / 2, v * sy / 2, z, 1.0] for u in (-1, 1) for v in (-1, 1) for z in (-h, 0.0)])
-        verts = (T @ corners.T).T[:, :3]
-        out.append(_Poly(f"{name}/mobile_base", None, verts, (70, 70, 80, 255), 2))
+        box = mobile_base(ctx.robot(name), spec, q, base)
+        if box is None:
+            continue
+        (sx, sy, h), C = box
+        corners = np.array([[u * sx / 2, v * sy / 2, w * h / 2, 1.0] for u in (-1, 1) for v in (-1, 1) for w in (-1, 1)])
+        out.append(_Poly(f"{name}/mobile_base", None, (C @ corners.T).T[:, :3], (70, 70, 80, 255), 2))
     return out
 
 

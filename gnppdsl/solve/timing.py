@@ -67,7 +67,8 @@ def split_key(key: str) -> tuple[str, tuple[str, ...]]:
 def coordinates(compiled: Any, key: str, dim: int) -> Coordinates:
     """The coordinate names and timing speeds of variable `key` (one point of `dim` numbers)."""
     kind, args = split_key(key)
-    decl = compiled.problem.domain.continuous.get(kind)
+    domain = getattr(compiled.problem, "domain", None)
+    decl = getattr(domain, "continuous", {}).get(kind)
     space = getattr(decl, "space", None)
     tags = getattr(decl, "tags", frozenset())
     traj = bool(getattr(decl, "traj", False))
@@ -219,8 +220,10 @@ def world_poses(compiled: Any, states: Sequence[Sequence[int]], step: int, value
     from gnppdsl.nlp.evaluate import constraint_rows
 
     problem = compiled.problem
-    scene = problem.scene
+    scene = getattr(problem, "scene", None)
     out: dict[str, np.ndarray] = {}
+    if scene is None:               # no geometry (a logic-only or hand-built problem): no poses
+        return out
     for obj in (entities if entities is not None else problem.objects):
         ent = scene.entity(obj) if scene is not None else None
         if ent is None or obj in scene.robots and scene.robots[obj].kind == "urdf":
@@ -248,7 +251,8 @@ def annotate_motion(result: Any, compiled: Any) -> None:
     """Add coordinate names, time stamps and world poses to a solved `Result` (in place).
     Unsolved results get only the input files."""
     problem = compiled.problem
-    result.inputs = {"problem": str(_abs(problem.path)), "domain": str(_abs(problem.domain.path))}
+    files = {"problem": getattr(problem, "path", None), "domain": getattr(getattr(problem, "domain", None), "path", None)}
+    result.inputs = {k: _abs(v) for k, v in files.items() if v}
     if not result.solved or not result.steps:
         return
     coords: dict[str, Coordinates] = {}

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from gnppdsl.geometry.render import mobile_base
 from gnppdsl.geometry.robots import se3_to_matrix
 from gnppdsl.solve.timing import motion_samples, result_states, world_poses
 
@@ -186,6 +187,11 @@ class _RobotVisuals:
                     continue
             self.bodies.append(body)
             self.paths.append(path)
+        self.spec = spec
+        self.base_path = f"robots/{robot}/mobile_base"
+        box = mobile_base(rm, spec, rm.home_coords(spec.home))
+        if box is not None:                 # the URDF has no base body: a box under the arm
+            self.bodies.insert(0, VisualBody(self.base_path, robot, "box", box[0], color=(0.27, 0.27, 0.31, 1.0)))
 
     def placements(self, q: np.ndarray) -> dict[str, np.ndarray]:
         pin = self.pin
@@ -196,6 +202,9 @@ class _RobotVisuals:
         for k, path in enumerate(self.paths):
             gid = self.visual.getGeometryId(path.rsplit("/", 1)[1])
             out[path] = base @ np.asarray(self.vdata.oMg[gid].homogeneous)
+        box = mobile_base(self.model, self.spec, q)
+        if box is not None:
+            out[self.base_path] = box[1]
         return out
 
 
