@@ -12,6 +12,9 @@ $(VENV)/.installed: pyproject.toml setup.py
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'
 	$(BIN)/python -m gnppdsl.geometry.native
+	# bytecode of the sources: a process that must compile them (PYTHONDONTWRITEBYTECODE, an
+	# editable install never imported) spends ~0.5 s CPU on it at every start (bench_komo.py)
+	$(BIN)/python -m compileall -q gnppdsl
 	touch $@
 
 demo: setup

@@ -45,10 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import gnppdsl                      # the public API: the command line solves through it
     from gnppdsl.errors import SolveFailure, UserError
-    from gnppdsl.solve.compiled import load_and_compile
-    from gnppdsl.solve.loop import solve_compiled
-    from gnppdsl.solve.options import SolveOptions
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
@@ -56,25 +54,24 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--time-limit must be positive")
     if args.max_horizon is not None and args.max_horizon < 0:
         raise UserError("--max-horizon must be >= 0")
-    from pathlib import Path
 
     for opt, value in (("--json", args.json), ("--db", args.db)):
         if value is not None:
             make_parent(opt, value)
-    compiled = load_and_compile(args.paths)
-    options = SolveOptions.from_settings(
+    compiled = gnppdsl.load_and_compile(args.paths)
+    options = gnppdsl.SolveOptions.from_settings(
         compiled.problem.settings,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
         order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
     )
     if args.quiet:
-        result = solve_compiled(compiled, options)
+        result = gnppdsl.solve_problem(compiled, options)
     else:   # a live status line on a terminal, a line per plan otherwise (gnppdsl.cli.status)
         from gnppdsl.cli.status import SolveStatus
 
         with SolveStatus(compiled.problem.name, options.time_limit, echo=emit if args.verbose else None) as status:
-            result = solve_compiled(compiled, options, progress=status)
+            result = gnppdsl.solve_problem(compiled, options, progress=status)
     if args.json:
         try:
             result.write_json(args.json)

@@ -175,16 +175,14 @@ class CsvJournal:
 
 def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
     """Run one cell in this process and return its row (a refused problem or option: an error row)."""
+    import gnppdsl                      # the public API: the command line solves through it
     from gnppdsl.cli.algorithms import parse_algorithms
-    from gnppdsl.solve.compiled import load_and_compile
-    from gnppdsl.solve.loop import solve_compiled
-    from gnppdsl.solve.options import SolveOptions
 
     try:
         spec = parse_algorithms(cell.algorithm)[0]
         if compiled is None:
-            compiled = load_and_compile([cell.file])
-        options = SolveOptions.from_settings(
+            compiled = gnppdsl.load_and_compile([cell.file])
+        options = gnppdsl.SolveOptions.from_settings(
             compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
             time_limit=settings.time_limit, seed=cell.seed, max_horizon=settings.max_horizon,
             order=settings.order, jit=settings.jit, distance_curvature=settings.distance_curvature,
@@ -192,7 +190,7 @@ def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
         # every run compiles its own templates: runs share nothing, so no algorithm or seed is
         # timed with the templates an earlier one compiled
         compiled.compilers.clear()
-        return result_row(cell, solve_compiled(compiled, options))
+        return result_row(cell, gnppdsl.solve_problem(compiled, options))
     except UserError as err:
         name = getattr(getattr(compiled, "problem", None), "name", "")
         return failure_row(cell, RUN_ERROR, str(err), problem=name)
@@ -238,14 +236,14 @@ def solve_cell_isolated(cell: Cell, settings: RunSettings) -> dict:
 def run_serial(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict], None],
                on_error: Callable[[str, UserError], None]) -> None:
     """Every cell in this process, each problem loaded and compiled once (no Ray needed)."""
-    from gnppdsl.solve.compiled import load_and_compile
+    import gnppdsl
 
     by_file: dict[str, list[Cell]] = {}
     for c in cells:
         by_file.setdefault(c.file, []).append(c)
     for file, group in by_file.items():
         try:
-            compiled = load_and_compile([file])
+            compiled = gnppdsl.load_and_compile([file])
         except UserError as err:            # one broken problem does not stop the benchmark
             on_error(file, err)
             for c in group:

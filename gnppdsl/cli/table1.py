@@ -4,7 +4,7 @@ The paper's figures (CPU seconds, mean and standard deviation over 10 seeds, one
 i7-1165G7, 100 s limit; `None` where the paper reports a failure "-") are transcribed from the
 text rendering of its Table I, whose cells run mean and deviation together (`22.79.2` = 22.7 ±
 9.2; both have one decimal in the time columns, so the reading is unambiguous). A measured
-problem is matched to a paper problem by name (`lab4`, `Lab_4`, `lab_4` -> `Lab_4`); its N0 and
+problem is matched to a paper problem by name (`lab4`, `Lab_4`, `lab4_paper` -> `Lab_4`); its N0 and
 N are printed beside the paper's, so a problem smaller than the paper's is visible as such.
 """
 from __future__ import annotations
@@ -62,7 +62,7 @@ PAPER_CPU = _parse_rows(_ROWS)
 
 def paper_name(problem: str) -> str | None:
     """The paper's name of a measured problem (`lab4` -> `Lab_4`), None if it has none."""
-    m = re.fullmatch(r"(work|lab|field)_?(\d)", problem.strip().lower())
+    m = re.fullmatch(r"(work|lab|field)_?(\d)(?:_paper)?", problem.strip().lower())
     if not m:
         return None
     name = f"{m.group(1).capitalize()}_{m.group(2)}"

@@ -30,7 +30,7 @@ import math
 import time
 import zlib
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Mapping, NamedTuple
 
 import casadi as ca
@@ -41,6 +41,8 @@ from gnppdsl.errors import UserError
 from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody, scatter_sum
 from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
+from gnppdsl.nlp import shape_cache
+from gnppdsl.nlp.monitor import IterationMonitor as _Monitor
 
 
 @dataclass
@@ -142,87 +144,6 @@ class FeasibilityResult:
         return [r for r in self.violations if r in violated or self.activity.get(r, 0.0) >= share]
 
 
-class _Monitor(ca.Callback):
-    """ipopt iteration callback: stops a run as soon as the *real* constraints hold (a
-    feasibility verdict needs no optimal regulariser), or when the violation has not improved
-    by 1 % for `patience` iterations (nonsmooth distances, e.g. penetrating boxes, make ipopt
-    wander until max_iter; measured 500 iterations ~ 0.5-2 s per run); progress is the total
-    violation (the L1 norm the elastic objective minimises). The real rows are
-    recovered from the elastic ones: h = g + s (inequalities), h = g + s_p - s_m (equalities)."""
-
-    def __init__(self, name: str, n_x: int, n_in: int, n_eq: int, n_g: int, n_p: int):
-        ca.Callback.__init__(self)
-        self.n_x, self.n_in, self.n_eq, self.n_g, self.n_p = n_x, n_in, n_eq, n_g, n_p
-        self.n_z = n_x + n_in + 2 * n_eq
-        self.reset(0.0, 0)
-        self.construct(name, {})
-
-    def reset(self, stop_below: float, patience: int, deadline: float = math.inf) -> None:
-        """`deadline` (time.perf_counter() clock): stop the run at the first iteration after
-        it. Why here and not only ipopt's `max_wall_time`: that option is fixed when the NLP
-        is assembled, and an assembled NLP is cached and solved again later (restarts, the
-        polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly. Only
-        NLPs with a monitor (early_stop: by default those with geometry primitives, whose
-        iterations are the slow ones) have this check; the others keep `max_wall_time`."""
-        self.stop_below, self.patience, self.deadline = stop_below, patience, deadline
-        self.best, self.best_z, self.since, self.stalled = np.inf, None, 0, False
-        self.timed_out = False
-
-    def get_n_in(self):
-        return ca.nlpsol_n_out()
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return ca.nlpsol_out(i)
-
-    def get_name_out(self, i):
-        return "ret"
-
-    def get_sparsity_in(self, i):
-        n = ca.nlpsol_out(i)
-        if n == "f":
-            return ca.Sparsity.scalar()
-        if n in ("x", "lam_x"):
-            return ca.Sparsity.dense(self.n_z)
-        if n in ("g", "lam_g"):
-            return ca.Sparsity.dense(self.n_g)
-        if n == "lam_p":
-            return ca.Sparsity.dense(self.n_p)
-        return ca.Sparsity(0, 0)
-
-    def eval(self, arg):
-        z = np.asarray(arg[0]).reshape(-1)
-        g = np.asarray(arg[2]).reshape(-1)
-        a, b = self.n_in, self.n_in + self.n_eq
-        s_in = z[self.n_x:self.n_x + a]
-        s_p = z[self.n_x + a:self.n_x + b]
-        s_m = z[self.n_x + b:]
-        r_in = np.maximum(g[:a] + s_in, 0.0)
-        r_eq = np.abs(g[a:b] + s_p - s_m)
-        r_q = np.abs(g[b:])
-        worst = max(np.max(r_in, initial=0.0), np.max(r_eq, initial=0.0),
-                    np.max(r_q, initial=0.0))
-        total = float(r_in.sum() + r_eq.sum() + r_q.sum())   # what the elastic form minimises
-        if time.perf_counter() >= self.deadline:
-            self.timed_out = True
-            return [1]
-        if not np.isfinite(total):
-            return [0]
-        if worst <= self.stop_below:
-            self.best, self.best_z = total, z.copy()
-            return [1]
-        if total < 0.99 * self.best:
-            self.best, self.best_z, self.since = total, z.copy(), 0
-        else:
-            self.since += 1
-            if self.patience and self.since >= self.patience:
-                self.stalled = True
-                return [1]
-        return [0]
-
-
 @dataclass(frozen=True)
 class Duals:
     """The elastic NLP's multipliers at a convergence point x*, per factor and per variable (so
@@ -271,6 +192,7 @@ class _Assembled:
                                        # the cache key holds their ids)
     spec: tuple = ()                   # (name, plugin, nlp, options) of `solver`: see `_polisher`
     polisher: ca.Function | None = None
+    root: "_Assembled | None" = None   # the assembly this one shares its solver with (shape_cache)
 
 
 def elastic_point(a: _Assembled, x: np.ndarray) -> np.ndarray:
@@ -287,6 +209,13 @@ def g_rows_of(a: _Assembled) -> np.ndarray:
     g_row[~a.kinds] = np.arange(a.n_ineq)
     g_row[a.kinds] = a.n_ineq + np.arange(a.n_eq)
     return g_row
+
+
+def _z_bounds(variables: list[VarInstance], n_slacks: int) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of z = (x, slacks): the variables' bounds, then slacks >= 0."""
+    lbx = np.concatenate([_bounds(v, v.lower, -np.inf) for v in variables]) if variables else np.zeros(0)
+    ubx = np.concatenate([_bounds(v, v.upper, np.inf) for v in variables]) if variables else np.zeros(0)
+    return np.concatenate([lbx, np.zeros(n_slacks)]), np.concatenate([ubx, np.full(n_slacks, np.inf)])
 
 
 def _bounds(v: VarInstance, bound, default: float) -> np.ndarray:
@@ -397,8 +326,7 @@ class FeasibilitySolver:
             self._nlps.move_to_end(key)
             ref_of = {id(f): r for r, f in inst}
             if any(ref_of[id(f)] != r for (r, _, _), f in zip(a.factor_rows, a.row_factors)):
-                from dataclasses import replace as _replace
-                a = _replace(a, factor_rows=[(ref_of[id(f)], i0, i1) for (_, i0, i1), f
+                a = replace(a, factor_rows=[(ref_of[id(f)], i0, i1) for (_, i0, i1), f
                                              in zip(a.factor_rows, a.row_factors)])
             return a
         variables = graph.variables
@@ -419,6 +347,20 @@ class FeasibilitySolver:
         mode = self.options.assembly
         use_mx = mode == "MX" or any(cb.symbolic == "MX" for _, cb, _ in compiled) or (
             mode == "auto" and any(cb.primitives for _, cb, _ in compiled))
+        # the same structure assembled for another graph: only its numbers differ (shape_cache)
+        skey = shape_cache.shape_key(variables, compiled,
+                                     [[index[v] for v in graph.factor(r).variables] for r, _, _ in compiled],
+                                     [_quat_slices(v) for v in variables], self._shape_options(use_mx))
+        shared = shape_cache.lookup(self.compiler, skey)
+        if shared is not None and self._wall_time_holds(shared):
+            params, factor_rows = shape_cache.instance_numbers(compiled, use_mx)
+            fac = dict(inst)
+            lbz, ubz = _z_bounds(variables, shared.n_ineq + 2 * shared.n_eq)
+            a = replace(shared, variables=variables, offsets=offsets, factor_rows=factor_rows,
+                        params=params, lbx=lbz, ubx=ubz, row_factors=tuple(fac[r] for r, _, _ in factor_rows),
+                        root=shared.root or shared)
+            self._remember(key, a)
+            return a
         S = ca.MX if use_mx else ca.SX
         # ipopt with the exact Hessian gets jac_g and hess_lag from the per-template derivatives
         # below and never differentiates g: g may then evaluate the bodies' fast twins
@@ -428,10 +370,10 @@ class FeasibilitySolver:
             x, P, params, rows, kinds, factor_rows, layout = self._mapped_rows(graph, compiled, index,
                                                                                offsets, n, given_derivatives)
         else:
-            params = np.concatenate([p for _, _, p in compiled]) if compiled else np.zeros(0)
+            params, factor_rows = shape_cache.instance_numbers(compiled, grouped=False)
             x = S.sym("x", n)
             P = S.sym("P", params.size)
-            rows, kinds, factor_rows, r0, p0 = [], [], [], 0, 0
+            rows, kinds, p0 = [], [], 0
             for r, cb, p in compiled:
                 f = graph.factor(r)
                 args = [x[offsets[index[v]]:offsets[index[v]] + v.dim] for v in f.variables]
@@ -439,8 +381,6 @@ class FeasibilitySolver:
                 p0 += cb.n_params
                 rows.append(h)
                 kinds += [k == "eq" for k in cb.kinds]
-                factor_rows.append((r, r0, r0 + cb.n_rows))
-                r0 += cb.n_rows
         h_all = ca.vertcat(*rows) if rows else S(0, 1)
         kinds_arr = np.array(kinds, dtype=bool)
         ineq = np.flatnonzero(~kinds_arr)
@@ -483,13 +423,7 @@ class FeasibilitySolver:
         solver = ca.nlpsol(f"elastic_{self._built}", self.options.plugin,
                            {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P, rho)}, opts)
         h_fun = ca.Function("h", [x, P], [h_all])
-        lbx = np.concatenate([_bounds(v, v.lower, -np.inf) for v in variables]) if variables \
-            else np.zeros(0)
-        ubx = np.concatenate([_bounds(v, v.upper, np.inf) for v in variables]) if variables \
-            else np.zeros(0)
-        ns = ineq.size + 2 * eq.size
-        lbz = np.concatenate([lbx, np.zeros(ns)])
-        ubz = np.concatenate([ubx, np.full(ns, np.inf)])
+        lbz, ubz = _z_bounds(variables, ineq.size + 2 * eq.size)
         lbg = np.concatenate([np.full(ineq.size, -np.inf), np.zeros(eq.size), np.zeros(len(quats))])
         ubg = np.zeros(ineq.size + eq.size + len(quats))
         fac = dict((r, f) for r, f in inst)
@@ -498,10 +432,33 @@ class FeasibilitySolver:
                        tuple(fac[r] for r, _, _ in factor_rows),
                        (f"elastic_{self._built}", self.options.plugin,
                         {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P, rho)}, opts))
+        self._remember(key, a)
+        shape_cache.store(self.compiler, skey, a, [cb for _, cb, _ in compiled])
+        return a
+
+    def _remember(self, key: tuple, a: _Assembled) -> None:
         self._nlps[key] = a
         while len(self._nlps) > self.options.cache_size:
             self._nlps.popitem(last=False)
-        return a
+
+    def _shape_options(self, use_mx: bool) -> tuple:
+        """What of the options the assembly reads, for `shape_cache` keys. Not ipopt's
+        `max_wall_time`: see `_wall_time_holds`."""
+        o = self.options
+        opts = {k: v for k, v in o.nlpsol_options().items() if k != "ipopt.max_wall_time"}
+        return (use_mx, o.plugin, o.hessian, o.distance_curvature, o.early_stop, o.assembly,
+                repr(sorted((k, repr(v)) for k, v in opts.items())))
+
+    def _wall_time_holds(self, shared: _Assembled) -> bool:
+        """Whether a shared NLP stops in time for this solver: its `max_wall_time` is this
+        solver's, or its iteration monitor enforces this solver's deadline and its wall time
+        is no shorter than this solver's (a shorter one could cut a run that has time left)."""
+        stored = shared.spec[3].get("ipopt.max_wall_time") if shared.spec else None
+        wanted = self.options.time_limit
+        if stored == (None if wanted is None else float(wanted)):
+            return True
+        return (shared.monitor is not None and math.isfinite(self.deadline)
+                and (stored is None or (wanted is not None and stored >= wanted)))
 
     @staticmethod
     def _mapped_rows(graph: GraphNLP, compiled: list, index: dict, offsets: list[int], n: int,
@@ -515,9 +472,9 @@ class FeasibilitySolver:
         groups: OrderedDict[int, list] = OrderedDict()
         for r, cb, p in compiled:
             groups.setdefault(id(cb), []).append((r, cb, p))
-        n_par = sum(p.size for _, _, p in compiled)
-        P = ca.MX.sym("P", n_par)
-        params, rows, kinds, factor_rows, r0, p0 = [], [], [], [], 0, 0
+        params_arr, factor_rows = shape_cache.instance_numbers(compiled, grouped=True)
+        P = ca.MX.sym("P", params_arr.size)
+        rows, kinds, r0, p0 = [], [], 0, 0
         layout = []      # per group: (cb, k, stacked-slot variable indices per instance, p0, r0)
         for members in groups.values():
             cb = members[0][1]
@@ -536,9 +493,7 @@ class FeasibilitySolver:
             layout.append((cb, k, stacked, p0, r0))
             npar = cb.n_params
             if npar:
-                pg = np.stack([p for _, _, p in members], axis=1)        # npar x k
-                params.append(pg.reshape(-1, order="F"))
-                Pg = ca.reshape(P[p0:p0 + npar * k], npar, k)
+                Pg = ca.reshape(P[p0:p0 + npar * k], npar, k)       # columns: the instances
                 p0 += npar * k
             else:
                 Pg = ca.MX(0, k)
@@ -546,11 +501,8 @@ class FeasibilitySolver:
             fn = body if k == 1 else body.map(k, "serial")
             out = fn(*slots, Pg)
             rows.append(ca.vec(out))
-            for t, (r, _, _) in enumerate(members):
-                factor_rows.append((r, r0 + t * cb.n_rows, r0 + (t + 1) * cb.n_rows))
-                kinds += [kd == "eq" for kd in cb.kinds]
+            kinds += [kd == "eq" for kd in cb.kinds] * k
             r0 += k * cb.n_rows
-        params_arr = np.concatenate(params) if params else np.zeros(0)
         return x, P, params_arr, rows, kinds, factor_rows, layout
 
     def _jacobian_function(self, layout: list, n: int, n_z: int, n_par: int, h_rows: np.ndarray,
@@ -735,6 +687,7 @@ class FeasibilitySolver:
         polish re-solves a convergence point with a weaker pull; from scratch ipopt climbs back
         from its initial barrier (10-18 iterations on planar p5's plans, more than the solve
         itself), warm-started 4-10."""
+        a = a.root or a                   # graphs of one structure share it (shape_cache)
         if a.polisher is None and a.spec and a.spec[1] == "ipopt":
             name, plugin, nlp, opts = a.spec
             warm = {"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-6}

@@ -120,7 +120,8 @@ def solve_compiled(compiled: Compiled, options: SolveOptions | None = None,
     return result
 
 
-def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, options: SolveOptions | None = None, progress: Progress | None = None,
+def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, options: SolveOptions | None = None,
+                  progress: Progress | None = None,
                   **overrides: Any) -> Result:
     """Solve a problem given as a path, a list of paths, an IR `Problem` or a `Compiled`.
 

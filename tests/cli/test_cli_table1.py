@@ -24,7 +24,7 @@ def test_transcription_spot_checks_against_the_paper_text():
 
 
 @pytest.mark.parametrize("name,expected", [("lab4", "Lab_4"), ("Lab_4", "Lab_4"), ("field_5", "Field_5"),
-                                           ("work1", "Work_1"), ("lab6", None), ("p3_occupied", None)])
+                                           ("work1", "Work_1"), ("lab4_paper", "Lab_4"), ("lab6", None), ("p3_occupied", None)])
 def test_paper_names(name, expected):
     assert paper_name(name) == expected
 

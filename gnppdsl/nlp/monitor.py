@@ -1,0 +1,94 @@
+"""ipopt's iteration callback for the elastic feasibility NLPs (`gnppdsl.nlp.feasibility`).
+
+Why its own module: it is the one piece of the solver that runs Python inside ipopt's loop,
+and the assembled-NLP caches share one monitor between every graph of a structure
+(`gnppdsl.nlp.shape_cache`), so its state is reset before each run and read right after.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import casadi as ca
+import numpy as np
+
+
+class IterationMonitor(ca.Callback):
+    """ipopt iteration callback: stops a run as soon as the *real* constraints hold (a
+    feasibility verdict needs no optimal regulariser), or when the violation has not improved
+    by 1 % for `patience` iterations (nonsmooth distances, e.g. penetrating boxes, make ipopt
+    wander until max_iter; measured 500 iterations ~ 0.5-2 s per run); progress is the total
+    violation (the L1 norm the elastic objective minimises). The real rows are
+    recovered from the elastic ones: h = g + s (inequalities), h = g + s_p - s_m (equalities)."""
+
+    def __init__(self, name: str, n_x: int, n_in: int, n_eq: int, n_g: int, n_p: int):
+        ca.Callback.__init__(self)
+        self.n_x, self.n_in, self.n_eq, self.n_g, self.n_p = n_x, n_in, n_eq, n_g, n_p
+        self.n_z = n_x + n_in + 2 * n_eq
+        self.reset(0.0, 0)
+        self.construct(name, {})
+
+    def reset(self, stop_below: float, patience: int, deadline: float = math.inf) -> None:
+        """`deadline` (time.perf_counter() clock): stop the run at the first iteration after
+        it. Why here and not only ipopt's `max_wall_time`: that option is fixed when the NLP
+        is assembled, and an assembled NLP is cached and solved again later (restarts, the
+        polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly. Only
+        NLPs with a monitor (early_stop: by default those with geometry primitives, whose
+        iterations are the slow ones) have this check; the others keep `max_wall_time`."""
+        self.stop_below, self.patience, self.deadline = stop_below, patience, deadline
+        self.best, self.best_z, self.since, self.stalled = np.inf, None, 0, False
+        self.timed_out = False
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        n = ca.nlpsol_out(i)
+        if n == "f":
+            return ca.Sparsity.scalar()
+        if n in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.n_z)
+        if n in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.n_g)
+        if n == "lam_p":
+            return ca.Sparsity.dense(self.n_p)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        z = np.asarray(arg[0]).reshape(-1)
+        g = np.asarray(arg[2]).reshape(-1)
+        a, b = self.n_in, self.n_in + self.n_eq
+        s_in = z[self.n_x:self.n_x + a]
+        s_p = z[self.n_x + a:self.n_x + b]
+        s_m = z[self.n_x + b:]
+        r_in = np.maximum(g[:a] + s_in, 0.0)
+        r_eq = np.abs(g[a:b] + s_p - s_m)
+        r_q = np.abs(g[b:])
+        worst = max(np.max(r_in, initial=0.0), np.max(r_eq, initial=0.0),
+                    np.max(r_q, initial=0.0))
+        total = float(r_in.sum() + r_eq.sum() + r_q.sum())   # what the elastic form minimises
+        if time.perf_counter() >= self.deadline:
+            self.timed_out = True
+            return [1]
+        if not np.isfinite(total):
+            return [0]
+        if worst <= self.stop_below:
+            self.best, self.best_z = total, z.copy()
+            return [1]
+        if total < 0.99 * self.best:
+            self.best, self.best_z, self.since = total, z.copy(), 0
+        else:
+            self.since += 1
+            if self.patience and self.since >= self.patience:
+                self.stalled = True
+                return [1]
+        return [0]
