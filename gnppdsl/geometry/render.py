@@ -259,18 +259,8 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
     all_polys = [_polys(ctx, s, keep) for s in states]
     motion_polys = [[_polys(ctx, s, keep) for s in (motions[i] if motions and i < len(motions) else [])]
                     for i in range(len(states))]
-    every = [p.verts for ps in all_polys for p in ps] + [p.verts for seq in motion_polys for ps in seq for p in ps]
-    pts = np.vstack(every) if every else np.zeros((1, 3))
-    # frame what is there in any keyframe (the scene workspace is often much larger)
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    pad = 0.05 * max(hi - lo)
-    lo, hi = lo - pad, hi + pad
-    views = [_View("top (x right, y up)", 0, 1, 2, lo, hi, size, planar=scene.dimension == 2)]
-    if scene.dimension == 3:
-        views.append(_View("front (x right, z up)", 0, 2, 1, lo, hi, size))
+    views, movable, statics = _views(scene, all_polys + [ps for seq in motion_polys for ps in seq], size)
     font = ImageFont.load_default()
-    movable = frozenset(n for n, o in scene.objects.items() if not o.static)
-    statics = frozenset(n for n, o in scene.objects.items() if o.static)
     paths = []
     for i, polys in enumerate(all_polys):
         img = Image.new("RGBA", (size * len(views), size + 20), (255, 255, 255, 255))
@@ -291,6 +281,22 @@ def render_keyframes(scene, models, states: list[dict[str, Any]], out_dir: str, 
     return paths
 
 
+def _views(scene, polys: list[list[_Poly]], size: int) -> tuple[list[_View], frozenset, frozenset]:
+    """The views framing every body drawn in any of the pictures (one scale for all, so they
+    compare; the scene workspace is often much larger), and the movable / static object names."""
+    every = [p.verts for ps in polys for p in ps]
+    pts = np.vstack(every) if every else np.zeros((1, 3))
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * max(hi - lo)
+    lo, hi = lo - pad, hi + pad
+    views = [_View("top (x right, y up)", 0, 1, 2, lo, hi, size, planar=scene.dimension == 2)]
+    if scene.dimension == 3:
+        views.append(_View("front (x right, z up)", 0, 2, 1, lo, hi, size))
+    movable = frozenset(n for n, o in scene.objects.items() if not o.static)
+    statics = frozenset(n for n, o in scene.objects.items() if o.static)
+    return views, movable, statics
+
+
 def front_polys_for_depth(polys: list[_Poly]) -> list[_Poly]:
     """Front view looks along +y, so bodies with smaller y are nearer: flip y for the depth sort
     only (the projection uses x and z, which are unchanged)."""
@@ -308,16 +314,8 @@ def render_animation(scene, models, frames: list[dict[str, Any]], path: str, siz
     keep = None if entities is None else frozenset(entities) | frozenset(
         n for n, o in scene.objects.items() if o.static)
     all_polys = [_polys(ctx, s, keep) for s in frames]
-    pts = np.vstack([p.verts for ps in all_polys for p in ps]) if any(all_polys) else np.zeros((1, 3))
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    pad = 0.05 * max(hi - lo)
-    lo, hi = lo - pad, hi + pad
-    views = [_View("top", 0, 1, 2, lo, hi, size, planar=scene.dimension == 2)]
-    if scene.dimension == 3:
-        views.append(_View("front", 0, 2, 1, lo, hi, size))
+    views, movable, statics = _views(scene, all_polys, size)
     font = ImageFont.load_default()
-    movable = frozenset(n for n, o in scene.objects.items() if not o.static)
-    statics = frozenset(n for n, o in scene.objects.items() if o.static)
     images = []
     for k, polys in enumerate(all_polys):
         img = Image.new("RGBA", (size * len(views), size + 20), (255, 255, 255, 255))

@@ -23,4 +23,4 @@ def test_api_doc_blocks_run(tmp_path, monkeypatch):
     for k, code in enumerate(blocks):
         exec(compile(code, f"docs/api.md block {k + 1}", "exec"), namespace)
     assert Path("out/api_p3.html").is_file() and Path("out/api_csv/g.csv").is_file()
-    assert len(namespace["pngs"]) == 5
+    assert len(namespace["pngs"]) == 6 and namespace["pngs"][-1].endswith("plan.gif")   # 5 keyframes + GIF
