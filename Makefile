@@ -30,7 +30,7 @@ demo: setup
 	@echo "  make test                            the test suite"
 
 test: setup
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 bench: setup
 	$(BIN)/gnpp bench examples/planar

@@ -254,6 +254,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--no-e2e", action="store_true", help="skip the end-to-end subprocesses")
     ap.add_argument("--only", choices=["gnpp", "komo"], default=None)
+    ap.add_argument("--unshared", action="store_true",
+                    help="also gnpp with every NLP assembled anew (SolverOptions.shared_assembly "
+                         "off: the engine before nlp/shape_cache.py), alternating with the others")
     ap.add_argument("--komo-process", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.komo_process is not None:
@@ -271,6 +274,8 @@ def main(argv: list[str] | None = None) -> int:
                   "(and apt-get install liblapack3 libglut3.12). Nothing measured.")
             return 0
     sides = [s for s in ("gnpp", "komo") if args.only in (None, s)]
+    if args.unshared and "gnpp" in sides:
+        sides.insert(1, "gnpp-unshared")
     import importlib.util
 
     from gnppdsl.geometry import native
@@ -282,12 +287,13 @@ def main(argv: list[str] | None = None) -> int:
           f"{'cached' if fresh else 'NOT cached (each gnpp process compiles its sources: make setup)'}")
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     try:
-        gnpp = Gnpp()
+        engines = {"gnpp": Gnpp(), "gnpp-unshared": Gnpp({"shared_assembly": False})}
         rows: dict[str, list[dict]] = {s: [] for s in sides}
-        warm = {"gnpp": lambda: gnpp.solve(write_problem(scratch / "warm", 1000), 1000),
+        warm = {"gnpp": lambda: engines["gnpp"].solve(write_problem(scratch / "warm", 1000), 1000),
+                "gnpp-unshared": lambda: engines["gnpp-unshared"].solve(write_problem(scratch / "warm", 1000), 1000),
                 "komo": lambda: komo_solve(ry, 1000)}
         def end_to_end(s: str, problem: Path, seed: int, r: dict) -> None:
-            if s == "gnpp":
+            if s.startswith("gnpp"):
                 cmd = [sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB / "domain.pntc"),
                        str(problem), "--quiet", "--no-jit", "--json", str(problem.parent / "out.json")]
                 r["e2e"], _ = child_cpu(cmd, scratch, env)
@@ -301,13 +307,13 @@ def main(argv: list[str] | None = None) -> int:
 
         for s in sides:
             warm[s]()
-            if not args.no_e2e:                # file system caches, as for every later process
+            if not args.no_e2e and s != "gnpp-unshared":                # file system caches, as for every later process
                 end_to_end(s, write_problem(scratch / "warm", 1000), 1000, {})
         for seed in range(args.seeds):
             problem = write_problem(scratch / f"s{seed}", seed)
             for s in sides:
-                r = gnpp.solve(problem, seed) if s == "gnpp" else komo_solve(ry, seed)
-                if not args.no_e2e:
+                r = engines[s].solve(problem, seed) if s in engines else komo_solve(ry, seed)
+                if not args.no_e2e and s != "gnpp-unshared":     # gnpp solve's own default
                     end_to_end(s, problem, seed, r)
                 rows[s].append(r)
             line = "  ".join(f"{s}: kf {rows[s][-1]['keyframe'] * 1e3:6.1f} ms "
@@ -331,7 +337,7 @@ def main(argv: list[str] | None = None) -> int:
     row("path NLP", lambda r: r["path"], "median {:.1f} ms")
     row("both paths", lambda r: [sum(r["path"])] if len(r["path"]) == 2 else [], "median {:.1f} ms")
     if not args.no_e2e:
-        row("end to end", lambda r: [r["e2e"]], "median {:.2f} s CPU")
+        row("end to end", lambda r: [r["e2e"]] if "e2e" in r else [], "median {:.2f} s CPU")
         if "gnpp" in sides:
             over = [r["e2e"] - r["e2e_solve"] for r in rows["gnpp"]]
             print(f"{'gnpp overhead':14s}{'':>0s}  process CPU beyond the solve's cpu_time: "
@@ -343,8 +349,13 @@ def main(argv: list[str] | None = None) -> int:
         e2e = sum(r.get("e2e_ok", False) for r in rs)
         res = [r["keyframe_res"] for r in rs] + [x for r in rs for x in r["path_res"]]
         print(f"{s}: feasible keyframes {kf}/{len(rs)}, both paths {paths}/{len(rs)}"
-              + ("" if args.no_e2e else f", end to end solved {e2e}/{len(rs)}")
+              + ("" if args.no_e2e or s == "gnpp-unshared" else f", end to end solved {e2e}/{len(rs)}")
               + f"; residual (gnpp: max violation, KOMO: eq sum) median {_med(res):.1e}, max {max(res):.1e}")
+    if "gnpp-unshared" in sides:
+        for name, get in (("keyframe", lambda r: [r["keyframe"]]), ("path", lambda r: r["path"])):
+            a = _med([x for r in rows["gnpp"] for x in get(r)])
+            b = _med([x for r in rows["gnpp-unshared"] for x in get(r)])
+            print(f"ratio gnpp/gnpp-unshared {name} NLP: {a / b:.2f}")
     if "gnpp" in sides and "komo" in sides:
         for name, get in (("keyframe", lambda r: [r["keyframe"]]), ("path", lambda r: r["path"])):
             a = _med([x for r in rows["gnpp"] for x in get(r)])

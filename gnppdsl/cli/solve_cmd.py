@@ -42,6 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true",
                         help="print only the final status line (no progress on stderr)")
     parser.add_argument("--verbose", action="store_true", help="print each plan and conflict as found")
+    parser.add_argument("--no-optimise", dest="optimise", action="store_false", default=None,
+                        help="return the first feasible solution without minimising the domain's "
+                             "`minimize` terms")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
         order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
+        optimise=args.optimise,
     )
     if args.quiet:
         result = gnppdsl.solve_problem(compiled, options)

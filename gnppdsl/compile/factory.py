@@ -33,7 +33,7 @@ from gnppdsl.compile.semantics import derive
 from gnppdsl.errors import UserError
 from gnppdsl.ir import model as m
 from gnppdsl.ir.builtins import BUILTINS
-from gnppdsl.ir.expr import (Call, Constraint, CVar, Forall, Index, IterVar, Num, Obj, Param, Slot,
+from gnppdsl.ir.expr import (Call, Constraint, CVar, Forall, Index, IterVar, Num, Obj, Objective, Param, Slot,
                              StateValue, Str, Vec, With)
 
 RobotDims = Callable[[str], tuple[int, Sequence[float] | None, Sequence[float] | None]]
@@ -125,12 +125,20 @@ class GraphNLPFactory:
     def factors(self, states: Sequence[Sequence[int]]) -> list[FactorInstance]:
         """Factor instances of the graph-NLP G(<s_0 ... s_n>), step by step, rules in
         declaration order, bindings in object order, calls in written order."""
+        return list(self._both(states)[0])
+
+    def objectives(self, states: Sequence[Sequence[int]]) -> list[FactorInstance]:
+        """The objective terms (`minimize` statements) of G(<s_0 ... s_n>), in the order of
+        `factors`: one instance per template call that has any, its body of `Objective`
+        statements. The feasibility graph never holds them; the optimisation phase sums them."""
+        return list(self._both(states)[1])
+
+    def _both(self, states: Sequence[Sequence[int]]) -> tuple[tuple, tuple]:
         key = tuple(tuple(s) for s in states)
-        if self._memo is not None and self._memo[0] == key:
-            return list(self._memo[1])
-        out = self._factors(key)
-        self._memo = (key, tuple(out))
-        return out
+        if self._memo is None or self._memo[0] != key:
+            out, terms = self._factors(key)
+            self._memo = (key, tuple(out), tuple(terms))
+        return self._memo[1], self._memo[2]
 
     def world_pose_expr(self, obj: str, states: Sequence[Sequence[int]], step: int
                         ) -> tuple[object, tuple[VarInstance, ...]]:
@@ -148,12 +156,13 @@ class GraphNLPFactory:
         expr = self._world(obj, ctx, acc, Obj(obj))
         return expr, tuple(self._var_instance(key, None) for key in acc.slots)
 
-    def _factors(self, states) -> list[FactorInstance]:
+    def _factors(self, states) -> tuple[list[FactorInstance], list[FactorInstance]]:
         states = [derive(self.task, s) for s in states]
         if not states:
-            return []
+            return [], []
         n = len(states) - 1
         out: list[FactorInstance] = []
+        terms: list[FactorInstance] = []
         for i in range(n + 1):
             for r, gr in enumerate(self.rules):
                 if gr.span == 2:
@@ -162,12 +171,15 @@ class GraphNLPFactory:
                 elif not gr.pre.holds_in(states[i]):
                     continue
                 for c, call in enumerate(gr.calls):
-                    fi = self._cached_instance(r, c, gr, call, states, i)
+                    fi, oi = self._cached_instance(r, c, gr, call, states, i)
                     if fi is not None:
                         out.append(fi)
-        return out
+                    if oi is not None:
+                        terms.append(oi)
+        return out, terms
 
-    def _cached_instance(self, r: int, c: int, gr: GroundRule, call, states, i) -> FactorInstance | None:
+    def _cached_instance(self, r: int, c: int, gr: GroundRule, call, states, i
+                         ) -> tuple[FactorInstance | None, FactorInstance | None]:
         """Reuse a resolution made at any step of any earlier state sequence.
 
         Sound because resolving a call reads the symbolic states only through `_object`,
@@ -190,18 +202,25 @@ class GraphNLPFactory:
             entries.append((c0, c1, result))
         return self._at_step(gr, call, result, c0, c1, i)
 
-    def _at_step(self, gr: GroundRule, call, result, c0, c1, i) -> FactorInstance | None:
+    def _at_step(self, gr: GroundRule, call, result, c0, c1, i
+                 ) -> tuple[FactorInstance | None, FactorInstance | None]:
+        """The call's factor (its constraints) and its objective terms at step i, each None
+        when the template has none."""
         if result is None:
-            return None
-        template, rel_keys, body = result
+            return None, None
+        template, rel_keys, body, obj_keys, obj_body = result
         pre = gr.pre.union(PartialState.of(c0))
         generator = (pre,)
         if gr.span == 2:
             generator = (pre, gr.post.union(PartialState.of(c1)))
-        variables = tuple(self._var_instance((name, args, rel + i), call) for name, args, rel in rel_keys)
-        return FactorInstance(template=template, rule=gr.name, bindings=gr.binding,
-                              tags=frozenset(call.tags), step=i, span=gr.span,
-                              generator=generator, variables=variables, body=body)
+
+        def instance(keys, part):
+            variables = tuple(self._var_instance((name, args, rel + i), call) for name, args, rel in keys)
+            return FactorInstance(template=template, rule=gr.name, bindings=gr.binding,
+                                  tags=frozenset(call.tags), step=i, span=gr.span,
+                                  generator=generator, variables=variables, body=part)
+        return (instance(rel_keys, body) if body else None,
+                instance(obj_keys, obj_body) if obj_body else None)
 
     def variables(self, states: Sequence[Sequence[int]],
                   factors: Sequence[FactorInstance] | None = None) -> list[VarInstance]:
@@ -289,14 +308,21 @@ class GraphNLPFactory:
         if gr.span == 1 and acc.consulted[1]:
             raise error_at(call.span, f"{where}: a single-state rule cannot use the next "
                                     f"step (')")
-        body, used = _compact_slots(body)
-        return tpl.name, tuple((acc.slots[j][0], acc.slots[j][1], acc.slots[j][2] - i) for j in used), body
+        def keyed(part):
+            part, used = _compact_slots(part)
+            return tuple((acc.slots[j][0], acc.slots[j][1], acc.slots[j][2] - i) for j in used), part
+
+        constraints = tuple(st for st in body if not isinstance(st, Objective))
+        terms = tuple(st for st in body if isinstance(st, Objective))
+        return (tpl.name, *keyed(constraints), *(keyed(terms) if terms else ((), ())))
 
     def _statements(self, stmts, ctx: _Ctx, acc: _Factor):
         for st in stmts:
             if isinstance(st, Constraint):
                 yield Constraint(self._resolve(st.lhs, ctx, acc), st.op,
                                  self._resolve(st.rhs, ctx, acc), span=st.span)
+            elif isinstance(st, Objective):
+                yield Objective(self._resolve(st.expr, ctx, acc), span=st.span)
             elif isinstance(st, Forall):
                 lo = self._int(st.lo, ctx, acc)
                 hi = self._int(st.hi, ctx, acc)
@@ -665,7 +691,7 @@ def _compact_slots(body):
             return Slot(order[node.index], span=node.span)
         if isinstance(node, tuple):
             return tuple(walk(x) for x in node)
-        if isinstance(node, (Call, Vec, Index, Constraint)):
+        if isinstance(node, (Call, Vec, Index, Constraint, Objective)):
             kw = {}
             for name in node.__dataclass_fields__:
                 if name != "span":

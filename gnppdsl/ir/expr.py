@@ -155,8 +155,21 @@ class Forall:
     var: str
     lo: Expr
     hi: Expr
-    body: tuple["Constraint | Forall", ...]
+    body: tuple["Constraint | Forall | Objective", ...]
     span: Span | None = field(default=None, compare=False, hash=False, repr=False)
 
 
-Statement = Union[Constraint, Forall]
+@dataclass(frozen=True)
+class Objective:
+    """`minimize expr`: a scalar term of the objective (stages 1 and 2).
+
+    Never a constraint: feasibility (the graph-NLPs of paper 000) ignores it; once a plan is
+    feasible, the optimisation phase minimises the sum of the plan's terms subject to all of
+    its factors (paper 002's optimal TAMP). The factory keeps the terms of a template call
+    apart from its constraints (`GraphNLPFactory.objectives`)."""
+
+    expr: Expr
+    span: Span | None = field(default=None, compare=False, hash=False, repr=False)
+
+
+Statement = Union[Constraint, Forall, Objective]

@@ -438,6 +438,7 @@ class SolverSettings:
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
                 in SQP trajectory optimisers (see `gnppdsl.nlp.feasibility.SolverOptions`)
+    optimise    minimise the domain's `minimize` terms from the first feasible solution (true)
     """
 
     algorithm: str = "gnpp"
@@ -453,6 +454,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
+    optimise: bool = True
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -462,7 +464,7 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool, "distance_curvature": bool,
+    "order": str, "jit": bool, "distance_curvature": bool, "optimise": bool,
 }
 
 

@@ -22,7 +22,7 @@ from typing import Callable
 from gnppdsl.ir import builtins as B
 from gnppdsl.ir.builtins import Space
 from gnppdsl.ir.expr import (Call, Constraint, CVar, Expr, Forall, Index, IterVar, Num, Obj,
-                             Param, StateValue, Str, Vec, With)
+                             Objective, Param, StateValue, Str, Vec, With)
 from gnppdsl.lang import ast
 from gnppdsl.lang.diagnostics import Reporter, did_you_mean
 
@@ -114,6 +114,10 @@ class Checker:
         for st in stmts:
             if isinstance(st, ast.ConstraintAst):
                 out.extend(self.constraint(st))
+            elif isinstance(st, ast.MinimizeAst):
+                o = self.objective(st)
+                if o is not None:
+                    out.append(o)
             else:
                 f = self.forall(st)
                 if f is not None:
@@ -138,6 +142,18 @@ class Checker:
             if ok:
                 out.append(Constraint(le, op.value, re_, c.span))
         return out
+
+    def objective(self, o: ast.MinimizeAst) -> Objective | None:
+        e, t = self.expr(o.expr)
+        if t.kind == "error":
+            return None
+        if t.kind == "any" or (t.kind == "value" and t.space is not None and t.space.kind in ("R", "int")
+                               and t.space.dim == 1):
+            return Objective(e, o.span)
+        what = str(t) if t.kind == "value" else _a(t)
+        self.err(o.expr.span, f"minimize takes a scalar (R), but this is {what}", "dimension",
+                 hint="e.g. norm(v), dot(v, v) or v[0] for a vector v")
+        return None
 
     def forall(self, f: ast.ForallAst) -> Forall | None:
         name = f.var.value

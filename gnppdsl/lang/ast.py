@@ -209,7 +209,15 @@ class ForallAst:
     span: Span | None = field(**_S)
 
 
-StmtAst = Union[ConstraintAst, ForallAst]
+@dataclass(frozen=True)
+class MinimizeAst:
+    """`minimize e`: a scalar term of the objective (paper 002's optimal TAMP)."""
+
+    expr: ExprAst
+    span: Span | None = field(**_S)
+
+
+StmtAst = Union[ConstraintAst, ForallAst, MinimizeAst]
 
 
 # ------------------------------------------------------------------ declarations

@@ -338,6 +338,9 @@ def _make_transformer(path: str):
             ops = tuple(x for x in c if isinstance(x, ast.Name))
             return ast.ConstraintAst(operands, ops, sp(m))
 
+        def minimize(self, m, c):
+            return ast.MinimizeAst(c[0], sp(m))
+
         def forall(self, m, c):
             return ast.ForallAst(name(c[0]), c[1], c[2], tuple(c[3:]), sp(m))
 

@@ -17,8 +17,9 @@ hash-consed nodes (a node is keyed by its builtin, its static arguments and its 
 ids; a leaf is a `VarInstance`): constant subtrees are folded when compiled, and one
 `max_violation` call evaluates every distinct node once, whichever factors share it. The steps call
 the same numeric kernels (`_NUMERIC`) as a plain walk of the body tree would, in the same order
-per node, so the numbers are the same bit for bit (`tests/nlp/evaluate_reference.py` is that walk,
-the tests' oracle). A factor also remembers its rows at its
+per node, so the numbers are the same bit for bit as such a walk (the tests' oracle,
+`tests/nlp/evaluate_reference.py`, walks the tree with numeric kernels of its own and agrees to
+rounding). A factor also remembers its rows at its
 last few inputs (keyed by the exact bytes of its variables' values and the geometry object):
 a pure function, asked again for the same point by the next subgraph. Whatever a body cannot
 evaluate (an unknown primitive, sizes that do not fit, a missing value) raises `EvaluationError`.

@@ -77,6 +77,8 @@ class SolverOptions:
                                    # its violation is below this (the solve loop lowers it for
                                    # a one-start verdict that is confirmed later: there the
                                    # confirmation polishes)
+    shared_assembly: bool = True   # graphs of one structure share one assembled NLP
+                                   # (`shape_cache`; False: each graph assembles its own)
 
     def nlpsol_options(self) -> dict:
         if self.plugin == "sqpmethod":
@@ -351,7 +353,7 @@ class FeasibilitySolver:
         skey = shape_cache.shape_key(variables, compiled,
                                      [[index[v] for v in graph.factor(r).variables] for r, _, _ in compiled],
                                      [_quat_slices(v) for v in variables], self._shape_options(use_mx))
-        shared = shape_cache.lookup(self.compiler, skey)
+        shared = shape_cache.lookup(self.compiler, skey) if self.options.shared_assembly else None
         if shared is not None and self._wall_time_holds(shared):
             params, factor_rows = shape_cache.instance_numbers(compiled, use_mx)
             fac = dict(inst)

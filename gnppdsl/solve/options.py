@@ -56,6 +56,8 @@ class SolveOptions:
                                      # verdict gets the second opinion of `recheck` when it ends the
                                      # time search, the restarts when it is the conflict (see
                                      # LAZY_MAX_FACTORS for why)
+    optimise: bool = True            # minimise the plan's `minimize` terms from its feasible solution
+                                     # (`solve.optimal`); without terms nothing happens
     certify: bool = True             # gnpp: the lazy search decides a subgraph of a cheap graph
                                      # that failed from one start at that graph's convergence
                                      # point when it certifies it (no NLP), and confirms it with
@@ -68,7 +70,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature"):
+                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "optimise"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)

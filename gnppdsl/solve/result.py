@@ -106,6 +106,10 @@ class Stats:
     N0: int | None = None             # length of the first logical plan
     N: int | None = None              # length of the returned solution
     max_violation: float | None = None   # independent re-check of every factor at the solution
+    cost: float | None = None         # the objective (`minimize` terms) at the returned solution
+    cost_feasible: float | None = None   # ... at the loop's feasible solution, before optimising
+    optimised: bool = False           # the optimisation phase's point replaced that solution
+    optimise_time: float = 0.0        # CPU seconds of the optimisation phase
     factors: int = 0                  # factors in the solution's graph-NLP
     variables: int = 0
 
@@ -128,6 +132,8 @@ class Result:
     inputs: dict[str, str] = field(default_factory=dict)            # "problem", "domain": file paths
     coordinates: dict[str, list[str]] = field(default_factory=dict)  # variable key -> component names
     robots: dict[str, dict[str, Any]] = field(default_factory=dict)  # robot -> joints, configuration / trajectory keys
+    # robot -> {"base": metres driven (None: fixed base), "end_effector": metres}
+    path_length: dict[str, dict[str, float | None]] = field(default_factory=dict)
     # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
     extras: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -158,6 +164,8 @@ class Result:
             "robots": dict(self.robots),
             "steps": [asdict(s) for s in self.steps],
             "conflicts": [c.to_json() for c in self.conflicts],
+            "cost": _finite({"cost": self.stats.cost})["cost"],
+            "path_length": _finite(self.path_length),
             "stats": _finite(asdict(self.stats)),
         }
 
@@ -211,6 +219,13 @@ class Result:
         if s.db_feasible_hits or s.db_infeasible_hits:
             lines.append(f"database: {s.db_feasible_hits} feasible and {s.db_infeasible_hits} "
                          f"infeasible hits (NLPs skipped)")
+        if s.cost is not None:
+            how = ("optimised" if s.optimised else "not improved") + f" in {s.optimise_time:.2f} s"
+            lines.append(f"objective: {s.cost:.6g} (the feasible solution's: {s.cost_feasible:.6g}; {how})")
+        for robot, lengths in self.path_length.items():
+            parts = [f"{k.replace('_', ' ')} {v:.3f} m" for k, v in lengths.items() if v is not None]
+            if parts:
+                lines.append(f"path length of {robot}: {', '.join(parts)}")
         if s.max_violation is not None:
             lines.append(f"independent re-check: max violation {s.max_violation:.2e} over "
                          f"{s.factors} factors, {s.variables} variables")

@@ -15,7 +15,9 @@ from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.compiled import Compiled
 from gnppdsl.solve.deadline import TimeUp, deadline_solver
+from gnppdsl.solve.optimal import optimisation_phase
 from gnppdsl.solve.options import Progress, SolveOptions
+from gnppdsl.solve.path_length import path_lengths
 from gnppdsl.solve.plan_graph import bound_violation, plan_graph
 from gnppdsl.solve.result import NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats, Step
 from gnppdsl.solve.rlgp import ReachabilityCosts
@@ -199,6 +201,7 @@ class Run(ReachabilityCosts):
     def solution(self, plan: Plan, graph: GraphNLP, values: dict[VarInstance, np.ndarray]) -> Result:
         from gnppdsl.nlp.evaluate import EvaluationError, max_violation
 
+        values = self.optimised(plan, graph, values)
         factors = graph.factor_instances
         try:
             worst, arg = max_violation(factors, values, self.compiled.geometry)
@@ -225,14 +228,45 @@ class Run(ReachabilityCosts):
             steps.append(st)
         tol = self.options.check_tolerance or self.options.tolerance
         extras = {"task": self.task, "plan": plan, "graph": graph, "values": values}
+        lengths = path_lengths(graph.variables, values, self.compiled.geometry) \
+            if self.compiled.geometry is not None else {}
         if not worst <= tol:
             what = arg.label if arg is not None and worst > bound_worst else "a variable bound"
             return self.result(SOLVER_FAILURE,
                                f"the solver's solution fails the independent re-check: {what} "
                                f"violated by {worst:.3g} > {tol:g}",
-                               plan=list(plan.names), steps=steps, extras=extras)
+                               plan=list(plan.names), steps=steps, extras=extras, path_length=lengths)
         return self.result(SOLVED, f"solved with {len(plan)} actions after {self.stats.plans} plans",
-                           plan=list(plan.names), steps=steps, extras=extras)
+                           plan=list(plan.names), steps=steps, extras=extras, path_length=lengths)
+
+    def optimised(self, plan: Plan, graph: GraphNLP, values: dict[VarInstance, np.ndarray]
+                  ) -> dict[VarInstance, np.ndarray]:
+        """The optimisation phase (`solve.optimal`) on the plan's feasible solution, when its
+        rule instances carry `minimize` terms; the objective goes to `stats.cost`."""
+        terms = self.compiled.factory.objectives(plan.states)
+        if not terms:
+            return values
+        tol = self.options.check_tolerance or self.options.tolerance
+        budget = self.remaining() if self.options.optimise else 0.0
+        solver = None
+
+        def polish(point: dict) -> dict | None:
+            nonlocal solver
+            from gnppdsl.solve.options import overridden
+
+            solver = solver or self.new_solver()
+            with overridden(solver.options, restarts=0):
+                res = solver.solve(graph, warm_start=point)
+            return res.values if res is not None and res.feasible else None
+
+        out = optimisation_phase(graph, terms, values, self.compiler, self.compiled.geometry, tol, budget,
+                                 polish)
+        self.stats.cost_feasible, self.stats.cost = out.cost_before, out.cost
+        self.stats.optimise_time, self.stats.optimised = out.seconds, out.accepted
+        if out.cost is not None:
+            self.say(f"objective {out.cost_before:.6g} at the feasible solution -> {out.cost:.6g}"
+                     f"{'' if out.accepted else ' (' + out.note + ')'}")
+        return out.values
 
 
 def _children_cpu() -> float:

@@ -140,10 +140,10 @@ class Logic:
 
 
 # ----------------------------------------------------------------------------------- geometry
-def plan_feasible(p: PlanarProblem, states: list[State], starts: int = 3, seed: int = 0) -> bool:
-    """Is the graph-NLP of this state sequence feasible? (elastic NLP, multi-start)"""
+def plan_graph(p: PlanarProblem, states: list[State]):
+    """The graph-NLP of a state sequence, written from examples/README.md's semantics:
+    (variables {("pose", block, i) | ("q", gripper, i): SX[3]}, stacked x, h (== 0), g (<= 0))."""
     import casadi as ca
-    import numpy as np
 
     lg = Logic(p)
     sc = p.scene
@@ -221,6 +221,52 @@ def plan_feasible(p: PlanarProblem, states: list[State], starts: int = 3, seed: 
     x = ca.vertcat(*opti_vars)
     h = ca.vertcat(*eq) if eq else ca.DM.zeros(0)
     gi = ca.vertcat(*ineq) if ineq else ca.DM.zeros(0)
+    named = {("pose", b, i): pose[b, i] for (b, i) in pose} | {("q", g, i): q[g, i] for (g, i) in q}
+    return named, opti_vars, x, h, gi
+
+
+def states_of_plan(p: PlanarProblem, actions: list[str]) -> list[State]:
+    """The state sequence of a plan given as `pick(b1, g, s1)` strings, by the hand-coded logic
+    (a step that is not applicable raises: the plan is invalid)."""
+    lg = Logic(p)
+    s = lg.initial()
+    out = [s]
+    for text in actions:
+        name, args = re.fullmatch(r"\s*(\w+)\((.*)\)\s*", text).groups()
+        want = (name, *[a.strip() for a in args.split(",")])
+        nxt = [t for a, t in lg.successors(s) if a == want]
+        assert nxt, f"{text} is not applicable in {s}"
+        s = nxt[0]
+        out.append(s)
+    assert lg.is_goal(s), f"the plan ends in {s}, not a goal state"
+    return out
+
+
+def solution_violation(p: PlanarProblem, actions: list[str], values: dict) -> float:
+    """Max violation of the reference graph-NLP of `actions` at `values`
+    ({("pose"|"q", object, step): [x, y, theta]}): a solution check that shares nothing with
+    the project's factory, compiler or evaluator."""
+    import casadi as ca
+    import numpy as np
+
+    named, opti_vars, x, h, gi = plan_graph(p, states_of_plan(p, actions))
+    order = {id(v): k for k, v in enumerate(opti_vars)}
+    xs = np.zeros(x.shape[0])
+    offsets = np.cumsum([0] + [v.shape[0] for v in opti_vars])
+    for key, sym in named.items():
+        k = order[id(sym)]
+        assert key in values, f"no value for {key}"
+        xs[offsets[k]:offsets[k + 1]] = np.asarray(values[key], float).reshape(-1)
+    hv, gv = (np.array(v).ravel() for v in ca.Function("f", [x], [h, gi])(xs))
+    return float(max([0.0] + list(np.abs(hv)) + list(np.maximum(gv, 0.0))))
+
+
+def plan_feasible(p: PlanarProblem, states: list[State], starts: int = 3, seed: int = 0) -> bool:
+    """Is the graph-NLP of this state sequence feasible? (elastic NLP, multi-start)"""
+    import casadi as ca
+    import numpy as np
+
+    _, _, x, h, gi = plan_graph(p, states)
     ne, ni = h.shape[0], gi.shape[0]
     sp = ca.SX.sym("sp", ne)
     sm = ca.SX.sym("sm", ne)

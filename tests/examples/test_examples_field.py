@@ -50,3 +50,17 @@ def test_the_base_moves_only_out_of_a_driving_state(field1):
         moved.append(float(np.linalg.norm(b[:2] - a[:2])))
     drive = r.plan.index("end_move(mm)")          # the phase that ends with end_move
     assert moved[drive] > 0.5, moved
+
+
+def test_the_reported_base_path_is_the_drive(field1):
+    """`path_length` of the mobile base: the polyline through its [x, y] at every keyframe and
+    waypoint in time order, recomputed here from the returned steps."""
+    _, r = field1
+    pts = []
+    for st in r.steps:
+        pts.append(st.values["q(mm)"][:2])
+        pts.extend(w[:2] for w in st.trajectories.get("path(mm)", []))
+    xy = np.array(pts)
+    length = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
+    assert r.path_length["mm"]["base"] == pytest.approx(length, rel=1e-9)
+    assert r.path_length["arm1"]["base"] is None and r.path_length["mm"]["base"] > 0.5

@@ -19,7 +19,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from planar_reference import EXAMPLES  # noqa: E402
 
-pin = pytest.importorskip("pinocchio")
+import pinocchio as pin  # noqa: E402  (a dependency of the package: never a skip)
 
 SCENE = yaml.safe_load((EXAMPLES / "lab" / "lab.yaml").read_text())
 

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 import zlib
-import time
 
 import casadi as ca
 import numpy as np
@@ -51,6 +50,25 @@ def _sym_fn(ctx, a, b, kind=ca.SX):
     return ca.Function("f", [xa, xb], [d, ca.jacobian(d, ca.vertcat(xa, xb))])
 
 
+def _one_sided(fun, x, k, h):
+    e = np.zeros(x.size)
+    e[k] = h
+    f0 = np.asarray(fun(x), float)
+    return (np.asarray(fun(x + e), float) - f0) / h, (f0 - np.asarray(fun(x - e), float)) / h
+
+
+def _switch_explains(fun, x, k, deriv, tol=1e-4):
+    """A witness-feature switch inside the finite-difference step explains a mismatch at x along
+    coordinate k: `fun` has a kink there (its forward and backward differences at step 1e-6
+    disagree by more than tol) and `deriv` is the derivative on one side of it (a one-sided
+    difference at step 1e-8 within tol)."""
+    fw, bw = _one_sided(fun, x, k, 1e-6)
+    if np.max(np.abs(fw - bw)) <= tol:
+        return False
+    fw8, bw8 = _one_sided(fun, x, k, 1e-8)
+    return min(np.max(np.abs(deriv - fw8)), np.max(np.abs(deriv - bw8))) <= tol
+
+
 PAIRS = [("box", "cyl"), ("box", "ball"), ("cyl", "ball"), ("mesh", "box"), ("ball", "ball2"), ("box", "box2"),
          ("mesh", "cyl")]
 
@@ -58,7 +76,8 @@ PAIRS = [("box", "cyl"), ("box", "ball"), ("cyl", "ball"), ("mesh", "box"), ("ba
 @pytest.mark.parametrize("a,b", PAIRS)
 def test_sdist_value_and_gradient(ctx, a, b):
     rng = np.random.default_rng(zlib.crc32(f"{a}-{b}".encode()))
-    skipped = 0
+    switches = noisy = 0
+    worst_curved_sep = 0.0
     f = _sym_fn(ctx, a, b)
     fm = _sym_fn(ctx, a, b, ca.MX)
     n_pen = n_sep = 0
@@ -83,24 +102,35 @@ def test_sdist_value_and_gradient(ctx, a, b):
             fd[k] = (ctx.sdist_numeric(a, (x + e)[:7], b, (x + e)[7:]) -
                      ctx.sdist_numeric(a, (x - e)[:7], b, (x - e)[7:])) / (2 * h)
         err = np.abs(np.array(J).ravel() - fd).max()
-        # polytopes have non-differentiable poses (witness feature switches); skip the rare ones
+        # polytopes have non-differentiable poses (witness feature switches): a mismatch passes
+        # only where a switch is shown to happen (a kink of coal's distance along that
+        # coordinate, and the gradient equal to the derivative on one side of it)
         polytope = "box" in (a, b) or "mesh" in (a, b)
-        if err > 1e-2 and polytope:
-            skipped += 1        # a witness feature switch inside the FD step: d is not differentiable here
-            continue
-        if curved and d_ref < 0:
+        if curved and d_ref < 0 and not (err > 1e-2 and polytope):
             # EPA on a curved shape is a polytope approximation: normals good to ~1e-3
             worst_curved_pen = max(worst_curved_pen, err)
             continue
-        if err > 1e-4 and polytope:
-            skipped += 1
+        if err > 1e-4:
+            dist = lambda y: ctx.sdist_numeric(a, y[:7], b, y[7:])   # noqa: E731
+            Jr = np.array(J).ravel()
+            bad = np.flatnonzero(np.abs(Jr - fd) > 1e-4)
+            if polytope and all(_switch_explains(dist, x, k, float(Jr[k])) for k in bad):
+                switches += 1
+                continue
+            # else only a cylinder's GJK tolerance: coal's distance itself is noisy at the FD step
+            # (measured: mesh-cyl, 3 of 30 poses, 1.0e-4 to 3.0e-4)
+            assert curved, (a, b, i, err, "gradient mismatch without a feature switch")
+            noisy += 1
+            worst_curved_sep = max(worst_curved_sep, err)
             continue
         worst_grad = max(worst_grad, err)
     print(f"\n[sdist {a}-{b}] penetrating={n_pen} separated={n_sep} |d - coal|={worst_val:.1e} "
-          f"|grad - fd|={worst_grad:.1e} skipped={skipped} (curved, penetrating: {worst_curved_pen:.1e})")
+          f"|grad - fd|={worst_grad:.1e} switches={switches} curved noise={noisy} ({worst_curved_sep:.1e}) "
+          f"(curved, penetrating: {worst_curved_pen:.1e})")
     assert worst_val < 1e-9
     assert worst_curved_pen < 5e-3
-    assert skipped <= 5, skipped
+    assert switches + noisy <= 5, (switches, noisy)
+    assert worst_curved_sep < 1e-3
     assert worst_grad < 1e-4
     assert n_pen > 0 and n_sep > 0      # both regimes exercised
 
@@ -183,25 +213,10 @@ def test_link_distance_gradient_wrt_joints(ctx):
             assert err < 1e-4, (link, err)
 
 
-def test_timings_and_errors(ctx):
-    xa, xb = ca.SX.sym("a", 7), ca.SX.sym("b", 7)
-    t0 = time.perf_counter()
-    d = ctx.sdist("box", xa, "mesh", xb)
-    f = ca.Function("f", [xa, xb], [d, ca.jacobian(d, ca.vertcat(xa, xb))])
-    t_build = time.perf_counter() - t0
+def test_errors(ctx):
+    """Unknown bodies are user errors with a hint. (The timings this test printed are in
+    benchmarks/bench_geometry.py.)"""
     pa, pb = np.r_[0, 0, 0, 0, 0, 0, 1], np.r_[0.3, 0.1, 0, 0, 0, 0, 1]
-    n = 300
-    shifts = [np.r_[0.001 * k, 0, 0, 0, 0, 0, 0] for k in range(n)]     # new points: no memo hits
-    t0 = time.perf_counter()
-    for s in shifts:
-        f(pa, pb + s)
-    t_call = (time.perf_counter() - t0) / n
-    t0 = time.perf_counter()
-    for s in shifts:
-        ctx.sdist_numeric("box", pa, "mesh", pb + s)
-    t_num = (time.perf_counter() - t0) / n
-    print(f"\n[sdist timing] build {t_build * 1e3:.2f} ms, casadi value+jacobian {t_call * 1e6:.1f} us/call, "
-          f"numeric coal {t_num * 1e6:.1f} us/call")
     with pytest.raises(UserError, match="unknown collision body"):
         ctx.sdist_numeric("nothing", pa, "box", pb)
     with pytest.raises(UserError, match="did you mean 'panda_link4'"):
@@ -226,11 +241,7 @@ def test_ipopt_with_distance_constraints(ctx, sym):
     cons = [ctx.sdist(("link", "left", l), ctx.fk("left", q, l, base), "ball2", box) for l in ctx.links("left")]
     solver = ca.nlpsol("s", "ipopt", {"x": q, "f": ca.sumsqr(ee[:3] - target), "g": ca.vertcat(*cons)},
                        {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.max_iter": 100})
-    t0 = time.perf_counter()
     r = solver(x0=robot.home_coords(), lbg=0.03, ubg=ca.inf, lbx=robot.lower, ubx=robot.upper)
-    st = solver.stats()
-    print(f"\n[ipopt {sym.__name__}] {st['return_status']} after {st['iter_count']} iterations in "
-          f"{(time.perf_counter() - t0) * 1e3:.0f} ms (first solve: includes casadi's one-time setup)")
     assert solver.stats()["success"]
     qs = np.array(r["x"]).ravel()
     T = ctx.fk_matrix("left", qs, "panda_hand_tcp")
@@ -250,6 +261,7 @@ def test_sdist_hessian_matches_finite_differences(ctx, a, b):
     d = ctx.sdist(a, xa, b, xb)
     x = ca.vertcat(xa, xb)
     f = ca.Function("f", [xa, xb], [ca.gradient(d, x), ca.hessian(d, x)[0]])
+    grad = lambda y: np.array(f(y[:7], y[7:])[0]).ravel()   # noqa: E731
     errs = []
     for i in range(20):
         spread = 0.3 if i % 2 else 0.1
@@ -259,9 +271,13 @@ def test_sdist_hessian_matches_finite_differences(ctx, a, b):
         for k in range(14):
             e = np.zeros(14)
             e[k] = 1e-6
-            Hfd[:, k] = (np.array(f((xx + e)[:7], (xx + e)[7:])[0]).ravel() -
-                         np.array(f((xx - e)[:7], (xx - e)[7:])[0]).ravel()) / 2e-6
-        errs.append(np.abs(H - Hfd).max() / max(1.0, np.abs(Hfd).max()))
+            Hfd[:, k] = (grad(xx + e) - grad(xx - e)) / 2e-6
+        scale = max(1.0, np.abs(Hfd).max())
+        err = np.abs(H - Hfd).max() / scale
+        errs.append(err)
+        if err >= 1e-6:     # allowed only where the gradient switches feature inside the FD step
+            for k in np.flatnonzero(np.abs(H - Hfd).max(axis=0) / scale >= 1e-6):
+                assert _switch_explains(grad, xx, k, H[:, k], tol=1e-6 * scale), (a, b, i, k, err)
     errs = np.sort(errs)
     print(f"\n[hessian {a}-{b}] relative error median {errs[10]:.1e}, max {errs[-1]:.1e}")
     assert errs[-3] < 1e-6          # all but (at most) two feature switches inside the FD step

@@ -16,8 +16,6 @@ SCENES = ["lab/lab.yaml", "mobile/sorting.yaml", "planar/p3_occupied.yaml"]
 @pytest.mark.parametrize("rel", SCENES)
 def test_example_scene_initial_state(rel):
     path = os.path.join(ROOT, rel)
-    if not os.path.exists(path):
-        pytest.skip(f"{rel} not present")
     from gnppdsl.ir.scene import load_scene_file
     scene = load_scene_file(path)
     ctx = GeometryContext(scene)

@@ -1,8 +1,6 @@
 """Panda IK: reachable targets (from random configurations) are reached, checked with pinocchio."""
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pinocchio as pin
 
@@ -17,28 +15,23 @@ def test_panda_ik_reaches_reachable_targets():
     rng = np.random.default_rng(0)
     data = robot.model.createData()
     fid = robot.model.getFrameId("panda_hand_tcp")
-    solved, times, attempts = 0, [], []
+    solved = 0
     n = 20
     for i in range(n):
         qt = robot.random_coords(rng)
         pin.framesForwardKinematics(robot.model, data, robot.to_pin_q(qt))
         T = robot.base @ np.array(data.oMf[fid].homogeneous)
-        t0 = time.perf_counter()
         res = solve_ik(robot, T, restarts=5, seed=i)
-        times.append(time.perf_counter() - t0)
         if res is None:
             continue
         solved += 1
-        attempts.append(res.attempts)
         # independent check of the returned configuration
         pin.framesForwardKinematics(robot.model, data, robot.to_pin_q(res.q))
         T2 = robot.base @ np.array(data.oMf[fid].homogeneous)
         assert np.linalg.norm(T2[:3, 3] - T[:3, 3]) < 1e-3
         assert np.abs(T2[:3, :3] - T[:3, :3]).max() < 2e-2
         assert np.all(res.q >= robot.lower - 1e-9) and np.all(res.q <= robot.upper + 1e-9)
-    print(f"\n[ik panda] solved {solved}/{n}, median {np.median(times) * 1e3:.1f} ms, "
-          f"max {max(times) * 1e3:.1f} ms, mean attempts {np.mean(attempts):.2f}")
-    assert solved >= 18
+    assert solved >= 18, solved          # timings: benchmarks/bench_geometry.py
 
 
 def test_unreachable_target_returns_none():

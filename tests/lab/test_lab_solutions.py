@@ -90,6 +90,53 @@ def test_verification_rejects_a_trajectory_through_the_table(lab1):
     assert any("waypoint 10: collision" in f for f in rep.failures), rep.failures
 
 
+def test_verification_rejects_a_result_without_steps(lab1):
+    c, r = lab1
+    rep = verify_solution(c.geometry, _corrupt(r, lambda steps: steps.clear()))
+    assert not rep.ok and rep.failures == ["no steps in the result"]
+
+
+def test_verification_rejects_a_path_that_does_not_start_at_its_keyframe(lab1):
+    c, r = lab1
+
+    def shift(steps):
+        steps[0].trajectories["path(left_arm)"][0][0] += 0.05     # 0.05 rad off q(left_arm) at s0
+    rep = verify_solution(c.geometry, _corrupt(r, shift))
+    assert "path s0->s1: left_arm waypoint 0 is not the keyframe configuration" in rep.failures, rep.failures
+
+
+def test_verification_rejects_a_keyframe_beyond_joint_limits(lab1):
+    c, r = lab1
+    hi = c.geometry.robot("left_arm").upper
+
+    def push(steps):
+        steps[1].values["q(left_arm)"][5] = float(hi[5]) + 0.3
+    rep = verify_solution(c.geometry, _corrupt(r, push))
+    assert any(f.startswith("s1: joint limit left_arm") for f in rep.failures), rep.failures
+
+
+def test_verification_rejects_an_invalid_plan_and_a_missing_one(lab1):
+    c, r = lab1
+    ops = tuple(r.extras["plan"].operators)
+    assert len(ops) >= 2
+    swapped = type("R", (), {"steps": r.steps, "extras": {**r.extras, "plan": ops[::-1]}})()
+    rep = verify_solution(c.geometry, swapped)
+    assert any(f.startswith("plan invalid: ") for f in rep.failures), rep.failures
+    bare = type("R", (), {"steps": r.steps, "extras": {}})()
+    rep = verify_solution(c.geometry, bare)
+    assert "no task / plan in the result to validate the logic" in rep.failures
+    assert verify_solution(c.geometry, bare, check_logic=False).ok
+
+
+def test_verification_rejects_a_block_floating_above_its_support(lab1):
+    c, r = lab1
+
+    def lift(steps):
+        steps[0].values["pose(b1)"][2] += 0.02       # b1 on the table at s0: 2 cm in the air
+    rep = verify_solution(c.geometry, _corrupt(r, lift))
+    assert any(f.startswith("s0: b1 does not rest on") for f in rep.failures), rep.failures
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["lab2", "lab3", "lab4", "lab5"])
 def test_lab_problem_solved_and_verified(name):

@@ -42,30 +42,60 @@ def test_same_instances_at_other_positions_share_and_relabel():
     assert r2.violations[FactorRef(2)] <= 1e-6
 
 
+def _row_permutation(a, b, tol=1e-12):
+    """perm with b[perm[i]] == a[i] entry by entry (rows of two Jacobians over the same columns);
+    fails when a row of `a` has no equal row left in `b`."""
+    free, perm = list(range(b.shape[0])), []
+    for i, row in enumerate(a):
+        k = next((k for k in free if np.allclose(b[k], row, atol=tol, rtol=0)), None)
+        assert k is not None, f"row {i} of the SX Jacobian has no equal row in the MX one"
+        free.remove(k)
+        perm.append(k)
+    return np.array(perm)
+
+
 def test_mapped_mx_assembly_matches_sx():
+    """The MX assembly (rows grouped per template) is the SX one up to a row order: every row of
+    the constraint Jacobian (over the variables) equal entry by entry, the constraint values equal
+    under the same row map, and the Lagrangian's Hessian over the variables equal entry by entry
+    when the multipliers follow the rows. A derivative sent to the wrong variable fails here."""
     vs = [pose(f"b{i}", 0) for i in range(4)]
     fs = [in_box(v, 1.2, 0) for v in vs] + [no_overlap(vs[i], vs[j], 0.5, 0.5, 0)
                                            for i in range(4) for j in range(i + 1, 4)]
     g = GraphNLP(fs)
     start = {v: np.array([0.1 * i, -0.05 * i, 0.0]) for i, v in enumerate(vs)}
-    out = {}
+    asm = {}
     for mode in ("SX", "MX"):
         s = FeasibilitySolver(options=SolverOptions(restarts=0, assembly=mode, early_stop=False))
         a = s.assemble(g)
         x0 = s._start(a, g, start, None, 0, 0)
         z = np.concatenate([x0, np.linspace(0.1, 1.0, a.lbx.size - a.n_x)])
         p = np.concatenate([x0, a.params, [0.01]])
-        lam = np.linspace(-1.0, 2.0, a.lbg.size)
-        jac = a.solver.get_function("nlp_jac_g")(z, p)[1]
-        hess = a.solver.get_function("nlp_hess_l")(z, p, 1.0, lam)
-        h = np.asarray(a.h_fun(x0, a.params)).ravel()
-        out[mode] = (np.asarray(jac.full()), np.triu(np.asarray(hess.full())), np.sort(h), s.solve(g, warm_start=start))
-    jx, hx, hsx, rsx = out["SX"]
-    jm, hm, hmx, rmx = out["MX"]
-    assert np.allclose(hsx, hmx)
-    # rows are grouped per template in the MX assembly: compare order-free summaries
-    assert np.allclose(np.abs(jx).sum(), np.abs(jm).sum())
-    assert np.allclose(np.sort(hx.ravel()), np.sort(hm.ravel()))
+        asm[mode] = (s, a, x0, z, p)
+    jac = {mode: np.asarray(a.solver.get_function("nlp_jac_g")(z, p)[1].full())
+           for mode, (s, a, x0, z, p) in asm.items()}
+    n_x = asm["SX"][1].n_x
+    assert asm["MX"][1].n_x == n_x and asm["SX"][1].lbg.size == asm["MX"][1].lbg.size
+    jx, jm = jac["SX"][:, :n_x], jac["MX"][:, :n_x]
+    assert np.count_nonzero(jx) > 0
+    perm = _row_permutation(jx, jm)
+    np.testing.assert_array_equal(np.sort(perm), np.arange(jx.shape[0]))
+    hx = np.asarray(asm["SX"][1].h_fun(asm["SX"][2], asm["SX"][1].params)).ravel()
+    hm = np.asarray(asm["MX"][1].h_fun(asm["MX"][2], asm["MX"][1].params)).ravel()
+    assert hx.size == hm.size == jx.shape[0], (hx.size, jx.shape)
+    np.testing.assert_allclose(hm[perm], hx, atol=1e-12)
+    lam = np.linspace(-1.0, 2.0, jx.shape[0])
+    lam_m = np.empty_like(lam)
+    lam_m[perm] = lam                       # the multiplier of SX row i sits on MX row perm[i]
+    hess = {}
+    for mode, mult in (("SX", lam), ("MX", lam_m)):
+        s, a, x0, z, p = asm[mode]
+        H = np.asarray(a.solver.get_function("nlp_hess_l")(z, p, 1.0, mult).full())
+        hess[mode] = np.triu(H[:n_x, :n_x])
+    assert np.count_nonzero(hess["SX"]) > 0
+    np.testing.assert_allclose(hess["MX"], hess["SX"], atol=1e-12, rtol=1e-12)
+    rsx = asm["SX"][0].solve(g, warm_start=start)
+    rmx = asm["MX"][0].solve(g, warm_start=start)
     assert rsx.feasible and rmx.feasible
 
 

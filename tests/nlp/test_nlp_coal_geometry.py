@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-pytest.importorskip("coal")
+import coal  # noqa: E402,F401  (a dependency of the package: never a skip)
 from gnppdsl.geometry.context import GeometryContext  # noqa: E402
 from gnppdsl.ir.expr import Constraint, Num, Obj, Slot  # noqa: E402
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneShape  # noqa: E402

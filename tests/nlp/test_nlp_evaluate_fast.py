@@ -1,8 +1,9 @@
 """The compiled numpy evaluator (`gnppdsl.nlp.evaluate`) against two references.
 
-1. The plain tree walk (`tests/nlp/evaluate_reference.py`, `_reference_rows`): the compiled steps share nodes
-   across rows and factors, fold constants, and remember a factor's rows at recent inputs; none
-   of that may change a single bit of any row, on real graph-NLPs of the bundled examples
+1. The plain tree walk (`tests/nlp/evaluate_reference.py`, `_reference_rows`, with its own numeric
+   kernels: it imports nothing from the evaluator): the compiled steps share nodes across rows and
+   factors, fold constants, and remember a factor's rows at recent inputs; none of that may change
+   any row beyond rounding (relative 1e-10; the kernels differ, so not bit for bit), on real graph-NLPs of the bundled examples
    (planar blocks, the Lab with Panda arms and trajectories, a mobile manipulator) at random
    points.
 2. The casadi path (`body_compiler.BodyCompiler`, quaternion algebra instead of rotation
@@ -40,8 +41,6 @@ def graph(name: str):
     """(compiled problem, factors, variables, initial guess) of the first plan of an example."""
     if name not in _GRAPHS:
         path = EXAMPLES[name]
-        if not path.is_file():
-            pytest.skip(f"{path} not present")
         from gnppdsl.logic.planner import IncrementalPlanner
         from gnppdsl.solve.compiled import load_and_compile
 
@@ -76,11 +75,20 @@ def reference_violation(rows) -> float:
 
 
 def same_bits(a: float, b: float) -> bool:
-    return (math.isnan(a) and math.isnan(b)) or np.float64(a).tobytes() == np.float64(b).tobytes()
+    """Equal to rounding: the reference's kernels are written independently (relative 1e-10)."""
+    if math.isnan(a) or math.isnan(b):
+        return math.isnan(a) and math.isnan(b)
+    if math.isinf(a) or math.isinf(b):
+        return a == b
+    return abs(a - b) <= 1e-10 * max(1.0, abs(a), abs(b))
+
+
+def same_rows(got, want) -> bool:
+    return len(got) == len(want) and all(k == k2 and same_bits(a, b) for (k, a), (k2, b) in zip(got, want))
 
 
 @pytest.mark.parametrize("name", list(EXAMPLES))
-def test_rows_are_bitwise_those_of_the_tree_walk(name):
+def test_rows_are_those_of_the_tree_walk(name):
     c, factors, variables, guess = graph(name)
     rng = np.random.default_rng(7)
     rows_seen = 0
@@ -91,8 +99,7 @@ def test_rows_are_bitwise_those_of_the_tree_walk(name):
         ref = [reference_violation(_reference_rows(f, x, c.geometry)) for f in factors]
         expected = max(ref)
         assert same_bits(worst, expected)
-        assert arg is factors[next(i for i, v in enumerate(ref) if v == expected or
-                                   (math.isnan(v) and math.isnan(expected)))]
+        assert same_bits(ref[factors.index(arg)], expected)
         for f in factors:
             got, want = constraint_rows(f, x, c.geometry), _reference_rows(f, x, c.geometry)
             assert [k for k, _ in got] == [k for k, _ in want], f.label
@@ -101,7 +108,7 @@ def test_rows_are_bitwise_those_of_the_tree_walk(name):
             assert same_bits(factor_violation(f, x, c.geometry), reference_violation(want)), f.label
             rows_seen += len(want)
     assert rows_seen > 0
-    print(f"{name}: {len(factors)} factors, {rows_seen} rows compared bitwise")
+    print(f"{name}: {len(factors)} factors, {rows_seen} rows compared")
 
 
 @pytest.mark.parametrize("name", ["planar_p3", "lab1"])
@@ -145,7 +152,8 @@ def test_sharing_and_memo_never_answer_for_other_inputs():
     before = constraint_rows(f, x3, c.geometry)
     x3[moved] += 0.02
     after = constraint_rows(f, x3, c.geometry)
-    assert after == _reference_rows(f, x3, c.geometry) and before == _reference_rows(f, x1, c.geometry)
+    assert same_rows(after, _reference_rows(f, x3, c.geometry)) and same_rows(before, _reference_rows(f, x1, c.geometry))
+    assert not same_rows(after, before)
 
 
 class _Disc:
@@ -224,7 +232,7 @@ def test_constant_rows_nan_and_broadcasting_as_the_tree_walk():
             got, want = constraint_rows(f, x), _reference_rows(f, x)
             assert all(k == k2 and same_bits(a, b) for (k, a), (k2, b) in zip(got, want))
             assert len(got) == len(want) == 6
-            assert factor_violation(f, x) == reference_violation(want)
+            assert same_bits(factor_violation(f, x), reference_violation(want))
     assert factor_violation(f, {v: np.array([1.0, 2.0, 3.0])}) == math.inf       # sqrt(-1): NaN
 
 

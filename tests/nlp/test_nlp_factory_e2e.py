@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "compile"))
-planar_ir = pytest.importorskip("planar_ir")
+import planar_ir  # noqa: E402
 
 from gnppdsl.compile.factory import GraphNLPFactory  # noqa: E402
 from gnppdsl.compile.semantics import parse_plan, plan_states  # noqa: E402

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("coal")
+import coal  # noqa: E402,F401  (a dependency of the package: never a skip)
 from gnppdsl.geometry.context import GeometryContext  # noqa: E402
 from gnppdsl.geometry.distance import WitnessCallback  # noqa: E402
 from gnppdsl.nlp.evaluate import max_violation  # noqa: E402

@@ -10,11 +10,7 @@ from pathlib import Path
 
 import pytest
 
-try:
-    from gnppdsl.ir import load_problem  # noqa: F401  (the parser/IR front end)
-    from gnppdsl.solve.compiled import load_and_compile
-except ImportError as err:  # pragma: no cover - only while the front end is being written
-    pytest.skip(f"front end not available yet: {err}", allow_module_level=True)
+from gnppdsl.solve.compiled import load_and_compile
 
 from gnppdsl.compile.semantics import parse_plan, plan_states
 from gnppdsl.nlp.evaluate import max_violation

@@ -1,5 +1,19 @@
-"""Independent checks of solve results, shared by the toy and the planar end-to-end tests."""
+"""Checks of solve results, shared by the toy and the planar end-to-end tests.
+
+Independent of the solver path:
+- a solution of a planar_blocks problem is re-checked against the graph-NLP written from the
+  problem and scene files by tests/examples/planar_reference.py (its own logic, its own
+  constraints: neither the factory nor the evaluator);
+- every factor the factory builds for the plan is evaluated by the tests' own tree walk
+  (tests/nlp/evaluate_reference.py) besides the project's evaluator;
+- a conflict's subgraph is searched for a feasible point by scipy (tests/solve/scipy_oracle.py:
+  SLSQP and least squares on the reference walk's rows, no GraphNLP / casadi / ipopt) besides the
+  solver's own multi-start re-solve.
+"""
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -7,6 +21,17 @@ from gnppdsl.logic.validate import validate_plan
 from gnppdsl.nlp.evaluate import max_violation
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.nlp.graph import GraphNLP
+
+TESTS = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(TESTS / "examples"), str(TESTS / "nlp")]
+from evaluate_reference import _reference_rows  # noqa: E402
+from planar_reference import read_problem, solution_violation  # noqa: E402
+from scipy_oracle import scipy_feasible  # noqa: E402
+
+
+def _reference_violation(factor, values, geometry) -> float:
+    rows = _reference_rows(factor, values, geometry)
+    return max([0.0] + [abs(h) if k == "eq" else max(h, 0.0) for k, h in rows])
 
 
 def check_solution(compiled, result, tol: float = 1e-6) -> float:
@@ -31,6 +56,14 @@ def check_solution(compiled, result, tol: float = 1e-6) -> float:
     assert all(v in values for f in factors for v in f.variables)
     worst, arg = max_violation(factors, values, compiled.geometry)
     assert worst <= tol, (worst, arg.label if arg else None)
+    for f in factors:           # the tests' own tree walk agrees
+        assert _reference_violation(f, values, compiled.geometry) <= tol, f.label
+    problem = getattr(compiled, "problem", None)
+    if problem is not None and problem.domain.name == "planar_blocks":
+        # the graph-NLP rebuilt from the files by the reference model, not by the factory
+        named = {(v.kind, v.args[0], v.step): x for v, x in values.items() if not v.waypoints}
+        ref = solution_violation(read_problem(Path(problem.path)), list(result.plan), named)
+        assert ref <= tol, f"the reference model of {problem.name} finds a violation {ref}"
     for v in variables:
         x = np.asarray(values[v], float).reshape(-1)
         if v.lower is not None:
@@ -51,3 +84,7 @@ def check_conflict_infeasible(compiled, conflict, restarts: int = 8, noise: floa
     r = solver.solve(graph, seed=seed)
     assert not r.feasible, f"conflict {conflict.text} is feasible (violation {r.max_violation})"
     assert r.starts == restarts + 1
+    # a second method sharing no assembly code: scipy on the tests' own evaluation of the rows
+    other = scipy_feasible(conflict.subgraph, compiled.geometry, seed=seed)
+    assert not other.feasible, (f"conflict {conflict.text}: scipy finds a feasible point "
+                                f"(violation {other.best_violation:.1e})")

@@ -44,6 +44,10 @@ class ToyFactory:
         v = self.pvar[b]
         return self.task.variables[v].values[s[v]]
 
+    def objectives(self, states) -> list[FactorInstance]:
+        """The toy domain has no `minimize` terms (GraphNLPFactory.objectives)."""
+        return []
+
     def factors(self, states) -> list[FactorInstance]:
         out = []
         for i, s in enumerate(states):

@@ -14,15 +14,6 @@ from gnppdsl.errors import UserError
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 
 
-def _loader_ready() -> bool:
-    try:
-        import gnppdsl.ir as ir
-    except ImportError:
-        return False
-    return hasattr(ir, "load_problem")
-
-
-needs_loader = pytest.mark.skipif(not _loader_ready(), reason="gnppdsl.ir.load_problem not available yet")
 
 
 def test_algorithm_names():
@@ -57,7 +48,6 @@ def test_user_errors_exit_2(capsys, tmp_path):
     assert main(["bench", str(tmp_path), "--algorithms", "nope"]) == 2
 
 
-@needs_loader
 def test_solve_p3_occupied_json(capsys, tmp_path):
     out = tmp_path / "p3.json"
     code = main(["solve", str(PLANAR / "p3_occupied.pntc"), "--json", str(out)])
@@ -70,7 +60,6 @@ def test_solve_p3_occupied_json(capsys, tmp_path):
     assert data["stats"]["max_violation"] <= 1e-6
 
 
-@needs_loader
 def test_unsolvable_exit_1_with_reason(capsys):
     code = main(["solve", str(PLANAR / "t2_unreachable.pntc"), "--max-horizon", "3", "--quiet"])
     captured = capsys.readouterr()
@@ -78,14 +67,12 @@ def test_unsolvable_exit_1_with_reason(capsys):
     assert "no plan up to horizon 3" in captured.err + captured.out
 
 
-@needs_loader
 def test_time_limit_exit_1(capsys):
     code = main(["solve", str(PLANAR / "p3_occupied.pntc"), "--time-limit", "0.001", "--quiet"])
     captured = capsys.readouterr()
     assert code == 1 and "time limit" in captured.err + captured.out
 
 
-@needs_loader
 def test_bench_writes_table_and_csv(capsys, tmp_path):
     out = tmp_path / "b.csv"
     code = main(["bench", str(PLANAR / "p1_one_block.pntc"), "--algorithms", "oneway,gnpp_trn", "--seeds", "2",
@@ -98,7 +85,6 @@ def test_bench_writes_table_and_csv(capsys, tmp_path):
     assert all(r["solved"] == "True" and r["N"] == "2" for r in rows)
 
 
-@needs_loader
 def test_database_file_is_reused_by_a_later_run(capsys, tmp_path):
     db = tmp_path / "planar.sqlite"
     args = ["solve", str(PLANAR / "p3_occupied.pntc"), "--db", str(db), "--json"]
@@ -113,7 +99,6 @@ def test_database_file_is_reused_by_a_later_run(capsys, tmp_path):
     assert b["stats"]["nlp_solves"] < a["stats"]["nlp_solves"] and b["stats"]["N"] == 4
 
 
-@needs_loader
 def test_bench_skips_a_broken_problem_and_says_so(capsys, tmp_path):
     import shutil
 

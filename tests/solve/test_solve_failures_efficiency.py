@@ -13,10 +13,6 @@ from gnppdsl.cli.main import main
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 
-ir = pytest.importorskip("gnppdsl.ir")
-if not hasattr(ir, "load_problem"):
-    pytest.skip("gnppdsl.ir.load_problem is not available yet", allow_module_level=True)
-
 from gnppdsl.solve import loop  # noqa: E402
 from gnppdsl.solve.compiled import load_and_compile  # noqa: E402
 from gnppdsl.solve.deadline import deadline_solver, TimeUp  # noqa: E402
@@ -83,11 +79,11 @@ def test_solver_failure_exit_1_with_reason(capsys, monkeypatch):
 
 
 def test_bench_csv_directory_checked_before_running(capsys, tmp_path):
-    # a missing directory is created (README commands on a fresh clone); a file in the way is
-    # a one-line error before anything runs
-    (tmp_path / "file").write_text("")
+    """A CSV that cannot be written is refused before any run (a missing directory is created:
+    tests/cli/test_cli_bench_sweep.py; here the would-be directory is a file)."""
+    (tmp_path / "afile").write_text("x")
     code = main(["bench", str(PLANAR / "p1_one_block.pntc"), "--seeds", "1", "--csv",
-                 str(tmp_path / "file" / "x.csv")])
+                 str(tmp_path / "afile" / "x.csv")])
     captured = capsys.readouterr()
     assert code == 2 and "--csv" in _one_line(captured.err)
     assert "GNPP" not in captured.out            # nothing was run

@@ -18,10 +18,6 @@ from solve_checks import check_conflict_infeasible, check_solution
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 EXPECTED = yaml.safe_load((PLANAR / "expected.yaml").read_text())["problems"]
 
-ir = pytest.importorskip("gnppdsl.ir")
-if not hasattr(ir, "load_problem"):
-    pytest.skip("gnppdsl.ir.load_problem is not available yet", allow_module_level=True)
-
 from gnppdsl.solve.brute import brute_force  # noqa: E402
 from gnppdsl.solve.compiled import load_and_compile  # noqa: E402
 from gnppdsl.solve.loop import solve_compiled  # noqa: E402

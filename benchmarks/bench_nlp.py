@@ -1,9 +1,14 @@
 """Timing table of the nlp layer on the toy graphs (prints only; not a test).
 
-Run: cd tests/nlp && PYTHONPATH=. /work/venv/bin/python bench_nlp.py
+Run: python benchmarks/bench_nlp.py   (the toy graphs are the tests' own, tests/nlp/nlp_toys.py)
 """
+import sys
 import time
-from nlp_toys import *
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "nlp")]
+from nlp_toys import *  # noqa: E402,F403
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.nlp.feasibility import FeasibilitySolver
 from gnppdsl.nlp.subgraph import find_infeasible_subgraph

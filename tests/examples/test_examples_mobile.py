@@ -1,0 +1,37 @@
+"""The mobile examples (a Panda on a holonomic base, examples/mobile) solved end to end and
+checked by the independent pinocchio + coal verification (keyframes, every trajectory waypoint,
+the plan against the SAS+ task), with N from expected.yaml. Slow (a mobile solve is tens of
+seconds of CPU): run with GNPP_SLOW=1, as `.ci/run` does. The algorithms are those
+examples/README.md documents for each problem: sort2 by GNPP_trn, pick_place and sort4 by R-LGP."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from gnppdsl import load_and_compile
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
+from gnppdsl.solve.verify_solution import verify_solution
+
+MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
+EXPECTED = yaml.safe_load((MOBILE / "expected.yaml").read_text())["problems"]
+ALGORITHM = {"sort2": "gnpp", "pick_place": "rlgp", "sort4": "rlgp"}
+
+
+def test_every_mobile_problem_has_a_solve_test():
+    assert set(ALGORITHM) == set(EXPECTED)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(ALGORITHM))
+def test_mobile_problem_solved_and_verified(name):
+    c = load_and_compile(str(MOBILE / EXPECTED[name]["file"]))
+    r = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, algorithm=ALGORITHM[name],
+                                                     time_limit=900, seed=0))
+    assert r.status == "solved", r.message
+    assert (r.stats.N0, r.stats.N) == (EXPECTED[name]["n0"], EXPECTED[name]["n"])
+    rep = verify_solution(c.geometry, r)
+    assert rep.ok, str(rep)
+    assert rep.keyframes == len(r.plan) + 1 and rep.waypoints > 0
