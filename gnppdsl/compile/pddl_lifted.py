@@ -12,9 +12,9 @@ accepts it.
 
 Encoding of the SAS+ semantics (the same as the ground writer's, lifted):
 - a multi-valued state variable `parent(o: block) : place | gripper` is the predicate
-  `(parent ?o - block ?v - object)` true for exactly one value; `none` is a domain constant.
-  An assignment `parent(o) := g` adds `(parent ?o ?g)` and deletes every other value with
-  `(forall (?x - object) (when (parent ?o ?x) (not (parent ?o ?x))))` -- PDDL's add-after-delete
+  `(parent ?o - block ?value)` (untyped: object) true for exactly one value; `none` is a domain
+  constant. An assignment `parent(o) := g` adds `(parent ?o ?g)` and deletes every other value with
+  `(forall (?x) (when (parent ?o ?x) (not (parent ?o ?x))))` -- PDDL's add-after-delete
   semantics keeps the new value when it equals the old one;
 - a boolean state variable is a predicate true iff the value is true;
 - `derived p(x) := F` becomes `(:derived (p ?x) F)` with `exists`, `or`, `not`; the
@@ -131,7 +131,7 @@ class _Writer:
             if f.op == "!=":
                 return f"(not (= {a} {b}))"
             raise UserError(f"PDDL has no object ordering: cannot write `{f.op}` (write the ground "
-                            "task instead: `gnpp compile --emit pddl --ground`)")
+                            "task instead: `gnpp compile --emit pddl-ground`)")
         if isinstance(f, m.And):
             return self.conj([self.formula(x, env, depth) for x in f.items])
         if isinstance(f, m.Or):
@@ -194,7 +194,7 @@ class _Writer:
         x = f"?old-{self.fresh}"
         old = "(" + " ".join([self.preds.forward[("sv", a.var)], *(self.term(t, env) for t in a.args), x]) + ")"
         guard = old if cond is None else f"(and {cond} {old})"
-        out.append(f"(forall ({x} - object) (when {guard} (not {old})))")
+        out.append(f"(forall ({x}) (when {guard} (not {old})))")
         out.append(f"(when {cond} {text})" if cond else text)
         return out
 
@@ -217,7 +217,7 @@ class _Writer:
                                                   for par, ch in by_parent.items()) + ")")
         consts = [f"{self.objects.forward[o]} - {self.types.forward[t]}" for o, t in d.constants.items()]
         if self.none:
-            consts.append(f"{self.none} - object")
+            consts.append(self.none)       # untyped at the end of the list: of type object
         if consts:
             lines.append("  (:constants " + " ".join(consts) + ")")
         preds = []
@@ -225,7 +225,7 @@ class _Writer:
             env, decl = self.bind(sv.params, {})
             parts = [self.preds.forward[("sv", name)]] + ([decl] if decl else [])
             if not sv.is_bool:
-                parts.append("?value - object")
+                parts.append("?value")          # untyped: object (the `pddl` package knows no declared `object`)
             preds.append("(" + " ".join(parts) + ")")
         if not self.inline:
             for name, dp in d.derived.items():
