@@ -33,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", default=None, metavar="PATH",
                         help="persist the database of solved subgraphs in this SQLite file "
                              "(implies switch g); a later run on the same domain starts from it")
+    parser.add_argument("--active-set", action=argparse.BooleanOptionalAction, default=None,
+                        help="every solution is verified independently (pinocchio + coal); with the "
+                             "active set (default) the pairs it finds near join the plan's NLP until "
+                             "the verification is clean; --no-active-set: a rejected solution ends the "
+                             "solve as verification_failed")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the full result as JSON")
     parser.add_argument("--render", default=None, metavar="DIR", help="render the keyframes of the solution as images")
     parser.add_argument("--view", action="store_true",
@@ -67,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
         order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
-        optimise=args.optimise,
+        active_set=args.active_set, optimise=args.optimise,
     )
     if args.quiet:
         result = gnppdsl.solve_problem(compiled, options)

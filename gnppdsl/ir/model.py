@@ -410,6 +410,22 @@ class Relaxation:
     span: Span | None = field(**_SPAN)
 
 
+AVOID_CATEGORIES = ("robots", "objects", "scene")
+
+
+@dataclass(frozen=True)
+class Avoid:
+    """`avoid robots, objects, scene margin 0.01`: every pair of bodies of these categories
+    keeps `margin` at every keyframe, waypoint and segment midpoint (robot links: with each
+    robot's SRDF-filtered self pairs; objects: the movable objects; scene: static bodies and the
+    scene objects a problem does not declare). The engine enforces it by an active set over the
+    independent verification's pairs (`gnppdsl.solve.active_set`), no rule lists them."""
+
+    categories: tuple[str, ...]
+    margin: float = 0.0
+    span: Span | None = field(**_SPAN)
+
+
 SOLVER_ALGORITHMS = ("gnpp", "oneway", "rlgp")
 SOLVER_NLPS = ("ipopt", "sqpmethod")
 SOLVER_ORDERS = ("full_first", "relaxed_first", "staged")
@@ -569,6 +585,7 @@ class Domain:
     modules: dict[str, Module] = field(default_factory=dict)
     world_space: Space = Space("SE3", 7)
     span: Span | None = field(**_SPAN)
+    avoid: Avoid | None = None       # the `avoid` declaration (None: every category, margin 0)
 
     # ---- the type hierarchy --------------------------------------------------------------
     def ancestors(self, type_name: str) -> tuple[str, ...]:

@@ -416,6 +416,7 @@ DECL_WORDS = {
     ast.FrameDecl: "frame", ast.TemplateDecl: "template", ast.SceneAttrDecl: "scene",
     ast.PrimitiveDecl: "primitive", ast.RuleDecl: "rule", ast.RelaxationsDecl: "relaxations",
     ast.SolverDecl: "solver", ast.ReachabilityDecl: "reachability", ast.SceneRef: "scene",
+    ast.AvoidDecl: "avoid",
     ast.ObjectsDecl: "objects", ast.InitDecl: "init", ast.GoalDecl: "goal",
 }
 

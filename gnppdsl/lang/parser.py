@@ -22,7 +22,7 @@ MAX_SYNTAX_ERRORS = 20
 # words that start a declaration (used for error recovery and keyword hints)
 DECL_KEYWORDS = (
     "domain", "problem", "module", "use", "type", "const", "constants", "state", "derived",
-    "action", "continuous", "traj", "frame", "template", "rule", "relaxations", "solver",
+    "action", "continuous", "traj", "frame", "template", "rule", "relaxations", "solver", "avoid",
     "reachability", "scene", "primitive", "objects", "init", "goal",
 )
 _DECL_LINE = re.compile(r"^\s*(%s)\b" % "|".join(DECL_KEYWORDS))
@@ -443,6 +443,11 @@ def _make_transformer(path: str):
 
         def relaxations_decl(self, m, c):
             return ast.RelaxationsDecl(tuple(c), sp(m))
+
+        def avoid_decl(self, m, c):
+            names = tuple(name(t) for t in c if isinstance(t, Token))
+            margin = next((x for x in c if not isinstance(x, Token)), None)
+            return ast.AvoidDecl(names, margin, sp(m))
 
         def setting(self, m, c):
             return ast.Setting(name(c[0]), c[1], sp(m))

@@ -33,12 +33,12 @@ from gnppdsl.solve.compiled import Compiled, compile_problem, load_and_compile
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.options import Progress, SolveOptions
-from gnppdsl.solve.plan_evaluation import PlanEvaluation
+from gnppdsl.solve.coverage import Coverage
 from gnppdsl.solve.result import TIME_LIMIT, Conflict, Result
 from gnppdsl.solve.timing import annotate_motion
 
 
-class Loop(PlanEvaluation):
+class Loop(Coverage):
     """The loops of one solve: GNPP (Fig. 3; R-LGP when `algorithm` is rlgp, with the travel
     costs of `rlgp`) and One-way (Sec. VIII-C)."""
 
@@ -69,6 +69,10 @@ class Loop(PlanEvaluation):
                     self.add_conflict(plan, known, "database", "")
                     continue
             outcome = self.evaluate(graph, use_db=self.db is not None)
+            if outcome[0] == "solution":           # verified; near pairs join (the active set)
+                outcome = self.cover(plan, graph, outcome[1])
+            if outcome[0] == "result":
+                return outcome[1]
             if outcome[0] == "conflict":
                 if not self.confirm_sweeping(outcome[1]):
                     self.say("  plan blocked: a conflict without facts (it would forbid every plan) "
@@ -81,8 +85,6 @@ class Loop(PlanEvaluation):
                     continue
                 self.add_conflict(plan, outcome[1], "nlp", outcome[2])
                 continue
-            if outcome[0] == "solution":
-                return self.solution(plan, graph, outcome[1])
             # the solver contradicted itself (infeasible as a whole, every component feasible):
             # no sound conflict, so only this plan is given up
             self.say(f"  plan blocked: {outcome[1]}")
@@ -104,7 +106,9 @@ class Loop(PlanEvaluation):
             graph = self.build_graph(plan.states)
             r = FeasibilityCheck(self, self.new_solver(), graph, use_db=False).solve(graph)
             if r.feasible:
-                return self.solution(plan, graph, r.values)
+                outcome = self.cover(plan, graph, r.values)
+                if outcome[0] == "result":
+                    return outcome[1]             # else: blocked with the pairs it brings near
             self.stats.conflicts += 1
             self.conflicts.append(Conflict(tuple(PartialState.of(enumerate(s)) for s in plan.states),
                                            "blocked plan: " + "; ".join(plan.names), (), "plan", "",

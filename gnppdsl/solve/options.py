@@ -63,6 +63,10 @@ class SolveOptions:
                                      # point when it certifies it (no NLP), and confirms it with
                                      # the graph's restarts (`FeasibilityCheck.certify`); planar p5
                                      # 5 -> 3 NLPs, p4 10 -> 6
+    active_set: bool = True          # a solution the independent verification rejects gets the
+                                     # pairs it found near as factors and is solved again
+                                     # (`gnppdsl.solve.coverage`); False: it ends the solve as
+                                     # verification_failed (every solution is verified either way)
 
     @staticmethod
     def from_settings(settings: SolverSettings | None = None, **overrides: Any) -> "SolveOptions":

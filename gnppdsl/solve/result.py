@@ -20,7 +20,8 @@ SOLVED = "solved"
 NO_PLAN = "no_plan"                 # the logic planner proved no (further) plan exists up to the horizon
 TIME_LIMIT = "time_limit"
 SOLVER_FAILURE = "solver_failure"   # a plan's graph-NLP was feasible in every check but the full solve failed
-STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE)
+UNVERIFIED = "verification_failed"  # the solver's solution failed the independent verification and was not repaired
+STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE, UNVERIFIED)
 
 
 def algorithm_title(algorithm: str, switches: str | None) -> str:
@@ -132,6 +133,9 @@ class Result:
     inputs: dict[str, str] = field(default_factory=dict)            # "problem", "domain": file paths
     coordinates: dict[str, list[str]] = field(default_factory=dict)  # variable key -> component names
     robots: dict[str, dict[str, Any]] = field(default_factory=dict)  # robot -> joints, configuration / trajectory keys
+    # the independent verification (`gnppdsl.solve.verify_solution`): {ok, failures: [{kind,
+    # step, waypoint, bodies, distance, message}], keyframes, waypoints, midpoints, min_distance}
+    verification: dict[str, Any] | None = None
     # robot -> {"base": metres driven (None: fixed base), "end_effector": metres}
     path_length: dict[str, dict[str, float | None]] = field(default_factory=dict)
     # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
@@ -167,6 +171,7 @@ class Result:
             "cost": _finite({"cost": self.stats.cost})["cost"],
             "path_length": _finite(self.path_length),
             "stats": _finite(asdict(self.stats)),
+            "verification": self.verification,
         }
 
     def write_json(self, path: str | Path) -> None:
@@ -219,6 +224,12 @@ class Result:
         if s.db_feasible_hits or s.db_infeasible_hits:
             lines.append(f"database: {s.db_feasible_hits} feasible and {s.db_infeasible_hits} "
                          f"infeasible hits (NLPs skipped)")
+        v = self.verification
+        if v is not None:
+            lines.append(f"independent verification (pinocchio + coal): {'OK' if v['ok'] else 'FAILED'}, "
+                         f"{v['keyframes']} keyframes, {v['waypoints']} waypoints, {v['midpoints']} midpoints"
+                         + ("" if v["min_distance"] is None else f", min distance {v['min_distance']:+.4f}"))
+            lines += [f"  {f['message']}" for f in v["failures"][:10]]
         if s.cost is not None:
             how = ("optimised" if s.optimised else "not improved") + f" in {s.optimise_time:.2f} s"
             lines.append(f"objective: {s.cost:.6g} (the feasible solution's: {s.cost_feasible:.6g}; {how})")
@@ -235,6 +246,26 @@ class Result:
 def _num(x: float) -> str:
     """4 significant digits; solver noise below 1e-9 (`1.107e-14`) printed as 0."""
     return "0" if abs(x) < 1e-9 else f"{x:.4g}"
+
+
+def steps_of(task: Any, plan: Any, graph: Any, values: dict) -> list[Step]:
+    """The steps of a solution: each state s_i of `plan` (a logic plan) as text with the values
+    of the graph's variables at step i (trajectories as waypoint lists)."""
+    import numpy as np
+
+    steps = []
+    for i, s in enumerate(plan.states):
+        st = Step(i, plan.names[i - 1] if i > 0 else None, task.state_str(s))
+        for v in graph.variables:
+            if v.step != i or v not in values:
+                continue
+            x = np.asarray(values[v], float).reshape(-1)
+            if v.waypoints:
+                st.trajectories[v.key] = x.reshape(v.waypoints, v.point_dim).tolist()
+            else:
+                st.values[v.key] = x.tolist()
+        steps.append(st)
+    return steps
 
 
 def _opt(x: Any) -> str:

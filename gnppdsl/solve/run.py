@@ -19,7 +19,7 @@ from gnppdsl.solve.optimal import optimisation_phase
 from gnppdsl.solve.options import Progress, SolveOptions
 from gnppdsl.solve.path_length import path_lengths
 from gnppdsl.solve.plan_graph import bound_violation, plan_graph
-from gnppdsl.solve.result import NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats, Step
+from gnppdsl.solve.result import NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats, steps_of
 from gnppdsl.solve.rlgp import ReachabilityCosts
 
 if TYPE_CHECKING:  # pragma: no cover  (clingo, casadi: imported when a solve starts)
@@ -214,18 +214,7 @@ class Run(ReachabilityCosts):
         self.stats.N = len(plan)
         self.stats.factors = len(factors)
         self.stats.variables = len(graph.variables)
-        steps = []
-        for i, s in enumerate(plan.states):
-            st = Step(i, plan.names[i - 1] if i > 0 else None, self.task.state_str(s))
-            for v in graph.variables:
-                if v.step != i or v not in values:
-                    continue
-                x = np.asarray(values[v], float).reshape(-1)
-                if v.waypoints:
-                    st.trajectories[v.key] = x.reshape(v.waypoints, v.point_dim).tolist()
-                else:
-                    st.values[v.key] = x.tolist()
-            steps.append(st)
+        steps = steps_of(self.task, plan, graph, values)
         tol = self.options.check_tolerance or self.options.tolerance
         extras = {"task": self.task, "plan": plan, "graph": graph, "values": values}
         lengths = path_lengths(graph.variables, values, self.compiled.geometry) \
