@@ -11,7 +11,8 @@ import os
 import sys
 
 from gnppdsl.cli.outputs import make_parent
-from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
+from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument, add_order_argument,   # light imports
+                                     add_planner_argument)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,6 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
     add_order_argument(parser)
+    add_planner_argument(parser)
     add_jit_argument(parser)
     add_curvature_argument(parser)
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
@@ -71,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         compiled.problem.settings,
         algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
         seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
-        order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
+        order=args.order, jit=args.jit, distance_curvature=args.distance_curvature, planner=args.planner,
         active_set=args.active_set, optimise=args.optimise,
     )
     if args.quiet:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from gnppdsl.ir.model import SOLVER_ORDERS
+from gnppdsl.ir.model import SOLVER_ORDERS, SOLVER_PLANNERS
 
 
 def add_order_argument(parser: argparse.ArgumentParser) -> None:
@@ -30,3 +30,12 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "(--no-distance-curvature: they enter linearised, cheaper iterations on "
                              "robot domains). Default: the problem's solver setting "
                              "`distance_curvature`, else on")
+
+
+def add_planner_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--planner", choices=SOLVER_PLANNERS, default=None,
+                        help="logic mode: auto (clingo's shortest plans while cheap, Fast Downward once "
+                             "a call's proofs of shorter horizons cost more than 2 s), sequential (clingo, "
+                             "shortest plans, exact N0), fd (Fast Downward, A* with FF on the task with the "
+                             "conflicts compiled in: short plans, not proven shortest). Default: the "
+                             "problem's solver setting `planner`, else auto")

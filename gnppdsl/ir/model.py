@@ -429,6 +429,8 @@ class Avoid:
 SOLVER_ALGORITHMS = ("gnpp", "oneway", "rlgp")
 SOLVER_NLPS = ("ipopt", "sqpmethod")
 SOLVER_ORDERS = ("full_first", "relaxed_first", "staged")
+# logic modes (gnppdsl.logic.modes): auto = sequential while cheap, then Fast Downward
+SOLVER_PLANNERS = ("auto", "sequential", "fd")
 
 
 @dataclass(frozen=True)
@@ -450,6 +452,10 @@ class SolverSettings:
                 ("full_first", "relaxed_first", "staged"; None: the solver's default)
     jit         large derivative kernels as compiled C (cached on disk; `gnppdsl.nlp.jit`): true =
                 compile during the solve, false = never, None = in the background for later solves
+    planner     logic mode: "auto" (clingo's shortest plans while a call's proofs stay under 2 s,
+                then Fast Downward), "sequential" (clingo, shortest plans: exact N0), "fd" (Fast
+                Downward's A* with FF on the Appendix-B task: short plans, no proof); see
+                `gnppdsl.logic.modes` and docs/design.md "Logic modes and their guarantees"
     distance_curvature
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
@@ -470,6 +476,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
+    planner: str = "auto"
     optimise: bool = True
 
     def merged(self, **overrides) -> "SolverSettings":
@@ -480,7 +487,7 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool, "distance_curvature": bool, "optimise": bool,
+    "order": str, "jit": bool, "distance_curvature": bool, "planner": str, "optimise": bool,
 }
 
 

@@ -72,6 +72,10 @@ def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverS
             res.err(s.value.span, f"unknown order '{v}'", "setting",
                     did_you_mean(v, M.SOLVER_ORDERS) or "one of " + ", ".join(M.SOLVER_ORDERS))
             continue
+        if k == "planner" and v not in M.SOLVER_PLANNERS:
+            res.err(s.value.span, f"unknown planner '{v}'", "setting",
+                    did_you_mean(v, M.SOLVER_PLANNERS) or "one of " + ", ".join(M.SOLVER_PLANNERS))
+            continue
         if k == "switches" and (set(v) - set("trng") or len(set(v)) != len(v)):
             res.err(s.value.span, f"switches are letters among t, r, n, g (each once), got '{v}'", "setting")
             continue

@@ -83,6 +83,7 @@ class Stats:
     ipopt_runs: int = 0               # solver runs behind them (multi-starts, polish re-solves)
     nlp_time: float = 0.0             # seconds inside the NLP solver
     logic_time: float = 0.0           # seconds in the logic planner (incl. adding conflicts)
+    logic_cpu: float = 0.0            # CPU seconds of the same (Fast Downward's child processes included)
     factory_time: float = 0.0         # seconds building graph-NLPs
     reach_time: float = 0.0           # seconds building / querying reachability graphs (rlgp)
     total_time: float = 0.0           # wall clock
@@ -105,6 +106,8 @@ class Stats:
     kernels_queued: int = 0           # kernels handed to background compile workers (later solves load them)
     kernel_error: str = ""            # the last such error
     N0: int | None = None             # length of the first logical plan
+    N0_shortest: bool | None = None   # the logic mode proved that first plan shortest (N0 exact)
+    first_plan_time: float | None = None   # seconds from the start to the first logical plan
     N: int | None = None              # length of the returned solution
     max_violation: float | None = None   # independent re-check of every factor at the solution
     cost: float | None = None         # the objective (`minimize` terms) at the returned solution
@@ -210,7 +213,7 @@ class Result:
             f"stats: NLPs {s.nlp_solves} ({s.ipopt_runs} solver runs, {s.nlp_time:.2f} s), logic {s.logic_time:.2f} s, "
             f"factory {s.factory_time:.2f} s, " + (f"reachability {s.reach_time:.2f} s, " if s.reach_time else "")
             + f"plans {s.plans}, conflicts {s.conflicts}, "
-            f"N0 {_opt(s.N0)}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
+            f"N0 {_opt(s.N0)}{'' if s.N0_shortest is not False else ' (not proven shortest)'}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
         )
         if s.kernels_failed:
             lines.append(f"jit: {s.kernels_failed} kernels not compiled, run by casadi's virtual machine "
