@@ -175,6 +175,9 @@ def _write_text(path: str, text: str, option: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import contextlib
+
+    from gnppdsl.cli.status import BenchStatus
     from gnppdsl.cli.sweep import CsvJournal, RunSettings, grid, run_on_ray, run_serial
 
     specs = parse_algorithms(args.algorithms)
@@ -197,15 +200,16 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     skipped: list[str] = []
 
+    status = BenchStatus(len(todo)) if not args.quiet else None    # gnppdsl.cli.status
+
     def on_row(row: dict) -> None:
         if journal:
             journal.append(row)
         rows.append(typed({k: row.get(k) for k in row}))
-        if not args.quiet:
-            print(f"{row['problem']:16s} {row['algorithm']:10s} seed {row['seed']}: {row['status']:14s} "
-                  f"NLP {row.get('nlp_solves') or 0:4} cpu {float(row.get('cpu_time') or 0):6.2f} s "
-                  f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}",
-                  file=sys.stderr, flush=True)
+        if status is not None:
+            status.print_row(f"{row['problem']:16s} {row['algorithm']:10s} seed {row['seed']}: {row['status']:14s} "
+                             f"NLP {row.get('nlp_solves') or 0:4} cpu {float(row.get('cpu_time') or 0):6.2f} s "
+                             f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}")
 
     def on_error(file: str, err: Exception) -> None:
         print(f"gnpp bench: skipping {file}:\n{err}", file=sys.stderr)
@@ -214,11 +218,12 @@ def run(args: argparse.Namespace) -> int:
     if journal:
         journal.open()
     try:
-        if todo and (args.workers > 1 or args.address):
-            run_on_ray(todo, settings, on_row, workers=args.workers if not args.address else None,
-                       address=args.address)
-        elif todo:
-            run_serial(todo, settings, on_row, on_error)
+        with status or contextlib.nullcontext():
+            if todo and (args.workers > 1 or args.address):
+                run_on_ray(todo, settings, on_row, workers=args.workers if not args.address else None,
+                           address=args.address)
+            elif todo:
+                run_serial(todo, settings, on_row, on_error)
     finally:
         if journal:
             journal.close()

@@ -20,6 +20,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "compile": ("gnppdsl.cli.compile_cmd", "compile a problem to SAS+, PDDL, ASP or graph-NLP factors"),
     "solve": ("gnppdsl.cli.solve_cmd", "solve a problem with the Graph-NLP Planner"),
     "bench": ("gnppdsl.cli.bench", "run algorithms x problems x seeds and print a table"),
+    "view": ("gnppdsl.cli.view_cmd", "show a solved result in a browser 3-D viewer (or write it as one HTML page)"),
+    "export": ("gnppdsl.cli.export_cmd", "write a solved result's joint trajectories as CSV"),
 }
 
 

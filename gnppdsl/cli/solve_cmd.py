@@ -12,6 +12,7 @@ import sys
 import time
 from dataclasses import replace
 
+from gnppdsl.cli.outputs import make_parent
 from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
                                      add_order_argument, add_planner_argument, check_outputs,
                                      check_ranges)
@@ -45,9 +46,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "solve as verification_failed")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the full result as JSON")
     parser.add_argument("--render", default=None, metavar="DIR", help="render the keyframes of the solution as images")
+    parser.add_argument("--view", action="store_true",
+                        help="open the solution in the browser 3-D viewer (as `gnpp view RESULT.json`)")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
     parser.add_argument("--tolerance", type=float, default=None, help="constraint violation tolerance")
-    parser.add_argument("--quiet", action="store_true", help="print only the final status line")
+    parser.add_argument("--quiet", action="store_true",
+                        help="print only the final status line (no progress on stderr)")
     parser.add_argument("--verbose", action="store_true", help="print each plan and conflict as found")
     parser.add_argument("--no-optimise", dest="optimise", action="store_false", default=None,
                         help="return the first feasible solution without minimising the domain's "
@@ -67,6 +71,9 @@ def run(args: argparse.Namespace) -> int:
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
     check_ranges(args)
+    for opt, value in (("--json", args.json), ("--db", args.db)):
+        if value is not None:
+            make_parent(opt, value)         # created on a fresh clone (`gnppdsl.cli.outputs`)
     check_outputs(args)
     with interrupt.handlers():
         return _run(args, time.monotonic())
@@ -98,11 +105,14 @@ def _run(args: argparse.Namespace, start: float) -> int:
                 raise interrupt.Interrupted("time_limit")
             interrupt.arm_time_limit(left + ALARM_GRACE)
             options = replace(options, time_limit=left)
-            progress = None
-            if args.verbose and not args.quiet:
-                def progress(msg: str) -> None:
-                    emit(msg)
-            result = gnppdsl.solve_problem(compiled, options, progress=progress)
+            if args.quiet:
+                result = gnppdsl.solve_problem(compiled, options)
+            else:   # a live status line on a terminal, a line per plan otherwise (gnppdsl.cli.status)
+                from gnppdsl.cli.status import SolveStatus
+
+                with SolveStatus(compiled.problem.name, options.time_limit,
+                                 echo=emit if args.verbose else None) as status:
+                    result = gnppdsl.solve_problem(compiled, options, progress=status)
             result.time_limit = limit
     except interrupt.Interrupted as stop:
         result = _stopped(compiled, args, stop, time.monotonic() - start)
@@ -125,6 +135,10 @@ def _run(args: argparse.Namespace, start: float) -> int:
         emit(result.summary())
     if args.render and result.solved:
         _render(compiled, result, args.render)
+    if args.view and result.solved:
+        from gnppdsl.cli.view_cmd import show
+
+        show(result.to_json(), compiled)
     if result.status == INTERRUPTED:
         reason = stop_reason or "SIGINT"
         print(f"gnpp: {result.problem} {interrupt.Interrupted(reason).describe()}"
@@ -157,7 +171,7 @@ def _render(compiled, result, directory: str) -> None:
     from gnppdsl.solve.keyframes import render_solution
 
     files = render_solution(compiled, result, directory)
-    emit(f"rendered {len(files)} keyframes to {directory}")
+    emit(f"rendered {len(files) - 1} keyframes and the animation plan.gif to {directory}")
 
 
 def emit(text: str) -> None:

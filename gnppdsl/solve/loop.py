@@ -36,6 +36,7 @@ from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.options import Progress, SolveOptions
 from gnppdsl.solve.coverage import Coverage
 from gnppdsl.solve.result import INTERRUPTED, TIME_LIMIT, Conflict, Result
+from gnppdsl.solve.timing import annotate_motion
 
 
 class Loop(Coverage):
@@ -122,7 +123,9 @@ def solve_compiled(compiled: Compiled, options: SolveOptions | None = None,
                    progress: Progress | None = None) -> Result:
     """Solve an already compiled problem (a fresh planner, solver caches and database per call)."""
     options = (options or SolveOptions.from_settings(getattr(compiled.problem, "settings", None))).validated()
-    return Loop(compiled, options, progress).solve()
+    result = Loop(compiled, options, progress).solve()
+    annotate_motion(result, compiled)      # joint names, time stamps, world poses (timing.py)
+    return result
 
 
 def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, options: SolveOptions | None = None,

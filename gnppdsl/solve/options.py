@@ -15,7 +15,7 @@ from gnppdsl.ir.model import SOLVER_PLANNERS as PLANNERS
 from gnppdsl.ir.model import SolverSettings
 
 
-Progress = Callable[[str], None]
+Progress = Callable[[str], None]   # may also have `watch(stats)`: given the solve's live Stats once
 
 
 @dataclass(frozen=True)
