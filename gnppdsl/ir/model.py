@@ -490,6 +490,44 @@ SOLVER_FIELDS: dict[str, type] = {
     "order": str, "jit": bool, "distance_curvature": bool, "planner": str, "optimise": bool,
 }
 
+#: accepted ranges of the numeric solver settings and their command-line twins (inclusive).
+#: Why these bounds: ipopt cannot reach a violation below ~1e-10 in double precision (1e-30
+#: ended in "no plan"), and above 1e-2 a "solved" plan can be visibly wrong (`--tolerance 1e3`
+#: returned a violation of 0.5); a seed must fit numpy's 32-bit generator seed.
+SETTING_RANGES: dict[str, tuple[float, float]] = {
+    "tolerance": (1e-10, 1e-2), "time_limit": (1e-6, 1e7), "seed": (0, 2**32 - 1),
+    "waypoints": (2, 10_000), "max_horizon": (1, 10_000), "max_iter": (1, 10_000_000),
+}
+
+
+def setting_problem(key: str, value) -> str | None:
+    """Why `value` is not acceptable for the numeric setting `key` ("is out of range [a, b]",
+    "must be a finite number"), or None if it is. Callers put the setting's name in front."""
+    import math
+
+    if key not in SETTING_RANGES:
+        return None
+    lo, hi = SETTING_RANGES[key]
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return "must be a number"
+    if not math.isfinite(v):
+        return "must be a finite number"
+    if not lo <= v <= hi:
+        return f"is out of range [{lo:g}, {hi:,}]" if isinstance(hi, int) else f"is out of range [{lo:g}, {hi:g}]"
+    return None
+    lo, hi = SETTING_RANGES[key]
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return f"{key} must be a number"
+    if not math.isfinite(v):
+        return f"{key} must be a finite number, not {value}"
+    if not lo <= v <= hi:
+        return f"{key} = {value} is out of range [{lo:g}, {hi:g}]"
+    return None
+
 
 @dataclass(frozen=True)
 class Heuristic:

@@ -30,11 +30,13 @@ from typing import Any, Sequence
 from gnppdsl.compile.sas import PartialState
 from gnppdsl.ir.model import Problem
 from gnppdsl.solve.compiled import Compiled, compile_problem, load_and_compile
+from gnppdsl import interrupt
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.options import Progress, SolveOptions
 from gnppdsl.solve.coverage import Coverage
-from gnppdsl.solve.result import TIME_LIMIT, Conflict, Result
+from gnppdsl.solve.result import INTERRUPTED, TIME_LIMIT, Conflict, Result
+from gnppdsl.solve.timing import annotate_motion
 
 
 class Loop(Coverage):
@@ -49,6 +51,9 @@ class Loop(Coverage):
         except TimeUp:
             return self.result(TIME_LIMIT, f"time limit of {self.options.time_limit:g} s reached "
                                            f"after {self.stats.plans} plans")
+        except interrupt.Interrupted as stop:          # SIGINT / SIGTERM / the run's alarm
+            return self.result(TIME_LIMIT if stop.reason == "time_limit" else INTERRUPTED,
+                               f"{stop.describe()} after {self.stats.plans} plans")
 
     def gnpp(self) -> Result:
         while True:
@@ -118,7 +123,9 @@ def solve_compiled(compiled: Compiled, options: SolveOptions | None = None,
                    progress: Progress | None = None) -> Result:
     """Solve an already compiled problem (a fresh planner, solver caches and database per call)."""
     options = (options or SolveOptions.from_settings(getattr(compiled.problem, "settings", None))).validated()
-    return Loop(compiled, options, progress).solve()
+    result = Loop(compiled, options, progress).solve()
+    annotate_motion(result, compiled)      # joint names, time stamps, world poses (timing.py)
+    return result
 
 
 def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, options: SolveOptions | None = None,

@@ -15,7 +15,7 @@ from gnppdsl.ir.model import SOLVER_PLANNERS as PLANNERS
 from gnppdsl.ir.model import SolverSettings
 
 
-Progress = Callable[[str], None]
+Progress = Callable[[str], None]   # may also have `watch(stats)`: given the solve's live Stats once
 
 
 @dataclass(frozen=True)
@@ -93,6 +93,13 @@ class SolveOptions:
             raise UserError("a subgraph database (--db) needs the gnpp algorithm")
         if self.time_limit <= 0:
             raise UserError("the time limit must be positive")
+        from gnppdsl.ir.model import setting_problem
+
+        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+            value = getattr(self, key, None)        # the ranges of the `solver { }` block
+            problem = setting_problem(key, value) if value is not None else None
+            if problem is not None:
+                raise UserError(f"{key} {value} {problem}")
         if self.planner not in PLANNERS:
             raise UserError(f"planner '{self.planner}' is not available (use {', '.join(PLANNERS)})")
         if self.planner == "fd" and self.algorithm != "gnpp":

@@ -41,6 +41,9 @@ class Run(ReachabilityCosts):
         self.children_cpu_start = _children_cpu()
         self.deadline = self.start + options.time_limit
         self.stats = Stats()
+        watch = getattr(progress, "watch", None)   # a live status line reads the counters (cli/status.py)
+        if watch is not None:
+            watch(self.stats)
         self.conflicts: list[Conflict] = []
         self.reach = {}                   # robot -> (ReachabilityGraph, block)
         if options.algorithm == "rlgp":
