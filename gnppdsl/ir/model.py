@@ -454,7 +454,7 @@ class SolverSettings:
                 compile during the solve, false = never, None = in the background for later solves
     planner     logic mode: "auto" (clingo's shortest plans while a call's proofs stay under 2 s,
                 then Fast Downward), "sequential" (clingo, shortest plans: exact N0), "fd" (Fast
-                Downward's A* with FF on the Appendix-B task: short plans, no proof); see
+                Downward's greedy search with FF on the Appendix-B task: short plans, no proof); see
                 `gnppdsl.logic.modes` and docs/design.md "Logic modes and their guarantees"
     distance_curvature
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
