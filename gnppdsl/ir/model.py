@@ -429,6 +429,8 @@ class Avoid:
 SOLVER_ALGORITHMS = ("gnpp", "oneway", "rlgp")
 SOLVER_NLPS = ("ipopt", "sqpmethod")
 SOLVER_ORDERS = ("full_first", "relaxed_first", "staged")
+# logic modes (gnppdsl.logic.modes): auto = sequential while cheap, then Fast Downward
+SOLVER_PLANNERS = ("auto", "sequential", "fd")
 
 
 @dataclass(frozen=True)
@@ -450,6 +452,10 @@ class SolverSettings:
                 ("full_first", "relaxed_first", "staged"; None: the solver's default)
     jit         large derivative kernels as compiled C (cached on disk; `gnppdsl.nlp.jit`): true =
                 compile during the solve, false = never, None = in the background for later solves
+    planner     logic mode: "auto" (clingo's shortest plans while a call's proofs stay under 2 s,
+                then Fast Downward), "sequential" (clingo, shortest plans: exact N0), "fd" (Fast
+                Downward's greedy search with FF on the Appendix-B task: short plans, no proof); see
+                `gnppdsl.logic.modes` and docs/design.md "Logic modes and their guarantees"
     distance_curvature
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
@@ -470,6 +476,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
+    planner: str = "auto"
     optimise: bool = True
 
     def merged(self, **overrides) -> "SolverSettings":
@@ -480,8 +487,46 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool, "distance_curvature": bool, "optimise": bool,
+    "order": str, "jit": bool, "distance_curvature": bool, "planner": str, "optimise": bool,
 }
+
+#: accepted ranges of the numeric solver settings and their command-line twins (inclusive).
+#: Why these bounds: ipopt cannot reach a violation below ~1e-10 in double precision (1e-30
+#: ended in "no plan"), and above 1e-2 a "solved" plan can be visibly wrong (`--tolerance 1e3`
+#: returned a violation of 0.5); a seed must fit numpy's 32-bit generator seed.
+SETTING_RANGES: dict[str, tuple[float, float]] = {
+    "tolerance": (1e-10, 1e-2), "time_limit": (1e-6, 1e7), "seed": (0, 2**32 - 1),
+    "waypoints": (2, 10_000), "max_horizon": (1, 10_000), "max_iter": (1, 10_000_000),
+}
+
+
+def setting_problem(key: str, value) -> str | None:
+    """Why `value` is not acceptable for the numeric setting `key` ("is out of range [a, b]",
+    "must be a finite number"), or None if it is. Callers put the setting's name in front."""
+    import math
+
+    if key not in SETTING_RANGES:
+        return None
+    lo, hi = SETTING_RANGES[key]
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return "must be a number"
+    if not math.isfinite(v):
+        return "must be a finite number"
+    if not lo <= v <= hi:
+        return f"is out of range [{lo:g}, {hi:,}]" if isinstance(hi, int) else f"is out of range [{lo:g}, {hi:g}]"
+    return None
+    lo, hi = SETTING_RANGES[key]
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return f"{key} must be a number"
+    if not math.isfinite(v):
+        return f"{key} must be a finite number, not {value}"
+    if not lo <= v <= hi:
+        return f"{key} = {value} is out of range [{lo:g}, {hi:g}]"
+    return None
 
 
 @dataclass(frozen=True)
@@ -641,6 +686,22 @@ class Problem:
         wanted = (types,) if isinstance(types, str) else tuple(types)
         return tuple(o for o, t in self.objects.items()
                      if any(self.domain.is_subtype(t, w) for w in wanted))
+
+    @property
+    def static_obstacles(self) -> dict:
+        """Scene objects (`gnppdsl.ir.scene_model.SceneObject`, by name) that never move in this
+        problem: `static: true` ones and every scene object the problem does not declare (kept
+        at its scene pose as a static obstacle). Empty without a scene. See
+        `Scene.static_obstacles`."""
+        return {} if self.scene is None else self.scene.static_obstacles(self.objects)
+
+    @property
+    def undeclared_scene_objects(self) -> tuple[str, ...]:
+        """Scene objects the problem does not declare (scene order): static obstacles for the
+        solver and the verifier, never moved, never named by the logic."""
+        if self.scene is None:
+            return ()
+        return tuple(n for n in self.scene.objects if n not in self.objects)
 
     def object_index(self, name: str) -> int:
         """Position of an object in declaration order (the order `where a < b` uses)."""

@@ -9,14 +9,16 @@ imported: `gnpp check` stays fast.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gnppdsl.inputs import ROBOT_SUFFIXES
 from gnppdsl.ir.expr import Span
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
-from gnppdsl.lang.diagnostics import Reporter, did_you_mean
+from gnppdsl.lang.diagnostics import Reporter, did_you_mean, read_source
 
-TOP_KEYS = ("name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
+TOP_KEYS = ("include", "name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
 ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "base_joint", "ee", "locked",
               "home", "held_pose", "shape", "color")
 BASE_JOINTS = ("fixed", "planar", "free")
@@ -36,6 +38,20 @@ IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
 
 class _Bad(Exception):
     """Raised after a diagnostic has been reported, to skip the rest of an entry."""
+
+
+@dataclass
+class _Part:
+    """The entries of one scene file and of everything it includes, before pose resolution."""
+
+    loaders: list = field(default_factory=list)     # the _Loader of each file (diagnostics)
+    name: str | None = None
+    dim: int | None = None
+    workspace: tuple | None = None
+    robots: dict = field(default_factory=dict)
+    raw: dict = field(default_factory=dict)         # object name -> entry (see `_Loader.obj`)
+    where: dict = field(default_factory=dict)       # name -> "file:line:col" of its definition
+    ignore: list = field(default_factory=list)      # (loader, pair node)
 
 
 # ----------------------------------------------------------------------------------------
@@ -80,6 +96,18 @@ def compose_se2(a, b):
     th = a[2] + b[2]
     th = math.atan2(math.sin(th), math.cos(th))
     return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], th)
+
+
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:               # a 400-digit YAML integer
+        return False
+
+
+def _short(text: str, n: int = 80) -> str:
+    """A path as quoted in a message (a 10,000-character name is cut)."""
+    return text if len(text) <= n else f"{text[:n]}... ({len(text):,} characters)"
 
 
 # ----------------------------------------------------------------------------------------
@@ -139,8 +167,11 @@ class _Loader:
 
     def number(self, node, what: str) -> float:
         v = self.scalar(node)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
             self.fail(node, f"{what} must be a number")
+        if not _finite(v):
+            self.fail(node, f"{what} must be a finite number, not {node.value[:24]}", "number",
+                      "NaN and infinity have no place in a scene")
         return float(v)
 
     def numbers(self, node, what: str, n: int | tuple[int, ...] | None = None) -> tuple[float, ...]:
@@ -166,11 +197,34 @@ class _Loader:
             self.fail(node, f"{what} must be true or false")
         return v
 
-    def file(self, node, what: str) -> str:
+    def file(self, node, what: str, suffixes: tuple[str, ...] | None = None, directory: bool = False) -> str:
+        """A path named by the scene, relative to the scene file: a regular file (or a
+        directory) that exists, with one of `suffixes` if given; never opened here, so a
+        wrong path is refused without reading it (`gnppdsl.inputs`)."""
+        import os
+        import stat as st
+
+        from gnppdsl.inputs import MAX_INPUT_BYTES, describe_os_error
+
         rel = self.string(node, what)
-        p = (self.dir / rel).resolve()
-        if not p.exists():
-            self.fail(node, f"{what} not found: {rel}", "missing-file", f"paths are relative to {self.dir}")
+        if suffixes is not None and Path(rel).suffix.lower() not in suffixes:
+            self.fail(node, f"{what} must be a {' or '.join(suffixes)} file", "bad-file")
+        try:
+            p = (self.dir / rel).resolve()
+            mode = os.stat(p)
+        except (OSError, ValueError, RuntimeError) as exc:
+            reason = describe_os_error(exc) if not isinstance(exc, RuntimeError) else "a symbolic link loop"
+            if reason == "no such file":
+                self.fail(node, f"{what} not found: {_short(rel)}", "missing-file",
+                          f"paths are relative to {self.dir}")
+            self.fail(node, f"{what} {_short(rel)}: {reason}", "bad-file")
+        if directory and not st.S_ISDIR(mode.st_mode):
+            self.fail(node, f"{what} {_short(rel)} is not a directory", "bad-file")
+        if not directory and not st.S_ISREG(mode.st_mode):
+            self.fail(node, f"{what} {_short(rel)} is not a regular file", "bad-file",
+                      "devices, FIFOs and directories are not read")
+        if not directory and suffixes is not None and mode.st_size > MAX_INPUT_BYTES:
+            self.fail(node, f"{what} {_short(rel)} is larger than {MAX_INPUT_BYTES:,} bytes", "bad-file")
         return str(p)
 
     def unknown_key(self, key_node, key: str, known: tuple[str, ...], what: str) -> None:
@@ -192,6 +246,10 @@ class _Loader:
             return vals
         v = self.scalar(val_node)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
+            if not _finite(v):
+                self.error(val_node, f"attribute '{key}' must be a finite number, not {val_node.value[:24]}",
+                           "number", "NaN and infinity have no place in a scene")
+                return None
             self.attr_spans[(entity, key)] = self.span(key_node)
             return float(v)
         self.unknown_key(key_node, key, known, what)
@@ -330,8 +388,8 @@ class _Loader:
             self.fail(knode, f"robot '{name}' needs exactly one of `model:` (example-robot-data name) "
                       "or `urdf:` (a file)")
         model = self.string(m["model"][1], "model") if "model" in m else None
-        urdf = self.file(m["urdf"][1], "URDF file") if "urdf" in m else None
-        srdf = self.file(m["srdf"][1], "SRDF file") if "srdf" in m else None
+        urdf = self.file(m["urdf"][1], "URDF file", ROBOT_SUFFIXES) if "urdf" in m else None
+        srdf = self.file(m["srdf"][1], "SRDF file", ROBOT_SUFFIXES) if "srdf" in m else None
         pdirs = ()
         if "package_dirs" in m:
             import yaml
@@ -339,7 +397,7 @@ class _Loader:
             pn = m["package_dirs"][1]
             if not isinstance(pn, yaml.SequenceNode):
                 self.fail(pn, "package_dirs must be a list of directories")
-            pdirs = tuple(self.file(x, "package directory") for x in pn.value)
+            pdirs = tuple(self.file(x, "package directory", directory=True) for x in pn.value)
         base = self.pose(m["base"][1], 3) if "base" in m else IDENTITY
         ee = self.string(m["ee"][1], "ee") if "ee" in m else None
         locked = {}
@@ -373,10 +431,11 @@ class _Loader:
         return dict(name=name, shape=shape, rel=pose, parent=parent,
                     color=self.color(m["color"][1]) if "color" in m else (0.6, 0.6, 0.6, 1.0),
                     static=self.boolean(m["static"][1], "static") if "static" in m else False,
-                    attributes=attrs, source=str(self.span(knode)))
+                    attributes=attrs, source=str(self.span(knode)), loader=self)
 
     # ---- the file
-    def load(self, text: str) -> Scene | None:
+    def compose(self, text: str):
+        """The YAML node tree of `text` (None after reporting invalid YAML or an empty file)."""
         import yaml
 
         try:
@@ -392,6 +451,38 @@ class _Loader:
         if root is None:
             self.r.error(Span(self.path, 1, 1), "the scene file is empty", "scene")
             return None
+        return root
+
+    def load(self, text: str) -> Scene | None:
+        part = self.part(text, (str(Path(self.path).resolve()),))
+        if part is None:
+            return None
+        dim = part.dim if part.dim is not None else 3
+        objects = self.resolve_poses(part.raw, part.robots, dim)
+        ignore: set[frozenset[str]] = set()
+        for owner, pair in part.ignore:
+            names = []
+            for x in pair.value:
+                n = owner.scalar(x)
+                if n not in part.robots and n not in part.raw:
+                    owner.error(x, f"unknown robot or object '{n}'", "unknown-name",
+                                did_you_mean(str(n), list(part.robots) + list(part.raw)))
+                names.append(str(n))
+            ignore.add(frozenset(names))
+        if not all(x.ok for x in part.loaders):
+            return None
+        name = part.name if part.name is not None else Path(self.path).stem
+        return Scene(name, dim, part.robots, objects, frozenset(ignore), part.workspace, self.path)
+
+    def part(self, text: str, chain: tuple[str, ...]) -> "_Part | None":
+        """One file's entries merged after those of the files it includes (`include:`, paths
+        relative to this file, depth first, in order). Poses are resolved later, over the
+        merged entries, so an object may rest on a parent from another file."""
+        import yaml
+
+        root = self.compose(text)
+        if root is None:
+            return None
         try:
             top = self.mapping(root, "the scene")
         except _Bad:
@@ -399,23 +490,25 @@ class _Loader:
         for k, (kn, _) in top.items():
             if k not in TOP_KEYS:
                 self.unknown_key(kn, k, TOP_KEYS, "the scene")
-        name = Path(self.path).stem
-        dim = 3
-        workspace = None
+        out = _Part(loaders=[self])
+        if "include" in top:
+            self.include(top["include"][1], chain, out)
         try:
             if "name" in top:
-                name = str(self.scalar(top["name"][1]))
+                out.name = str(self.scalar(top["name"][1]))
             if "dimension" in top:
                 d = self.scalar(top["dimension"][1])
                 if d not in (2, 3) or isinstance(d, bool):
                     self.fail(top["dimension"][1], "dimension is 2 (planar) or 3")
-                dim = d
+                if out.dim is not None and out.dim != d:
+                    self.fail(top["dimension"][1], f"dimension {d} differs from the included "
+                              f"scenes' ({out.dim})", "include")
+                out.dim = d
         except _Bad:
             pass
+        dim = out.dim if out.dim is not None else 3
         if "workspace" in top:
             try:
-                import yaml
-
                 wn = top["workspace"][1]
                 if not isinstance(wn, yaml.SequenceNode) or len(wn.value) != 2:
                     self.fail(wn, "workspace is [[lower...], [upper...]]")
@@ -423,39 +516,36 @@ class _Loader:
                 hi = self.numbers(wn.value[1], "workspace upper bound", dim)
                 if any(a > b for a, b in zip(lo, hi)):
                     self.fail(wn, "workspace lower bounds must not exceed the upper bounds")
-                workspace = (lo, hi)
+                out.workspace = (lo, hi)
             except _Bad:
                 pass
-        robots: dict[str, SceneRobot] = {}
         if "robots" in top:
             try:
                 for rname, (kn, vn) in self.mapping(top["robots"][1], "robots").items():
+                    if self.taken(out, rname, kn):
+                        continue
                     try:
                         rb = self.robot(rname, kn, vn, dim)
                         if rb is not None:
-                            robots[rname] = rb
+                            out.robots[rname] = rb
+                            out.where[rname] = str(self.span(kn))
                     except _Bad:
                         pass
             except _Bad:
                 pass
-        raw: dict[str, dict] = {}
         if "objects" in top:
             try:
                 for oname, (kn, vn) in self.mapping(top["objects"][1], "objects").items():
-                    if oname in robots:
-                        self.error(kn, f"'{oname}' is already a robot", "duplicate")
+                    if self.taken(out, oname, kn):
                         continue
                     try:
-                        raw[oname] = self.obj(oname, kn, vn, dim)
+                        out.raw[oname] = self.obj(oname, kn, vn, dim)
+                        out.where[oname] = str(self.span(kn))
                     except _Bad:
                         pass
             except _Bad:
                 pass
-        objects = self.resolve_poses(raw, robots, dim)
-        ignore: set[frozenset[str]] = set()
         if "ignore_collisions" in top:
-            import yaml
-
             node = top["ignore_collisions"][1]
             try:
                 if not isinstance(node, yaml.SequenceNode):
@@ -464,19 +554,71 @@ class _Loader:
                     if not isinstance(pair, yaml.SequenceNode) or len(pair.value) != 2:
                         self.error(pair, "each entry of ignore_collisions is a pair [a, b]")
                         continue
-                    names = []
-                    for x in pair.value:
-                        n = self.scalar(x)
-                        if n not in robots and n not in raw:
-                            self.error(x, f"unknown robot or object '{n}'", "unknown-name",
-                                       did_you_mean(str(n), list(robots) + list(raw)))
-                        names.append(str(n))
-                    ignore.add(frozenset(names))
+                    out.ignore.append((self, pair))
             except _Bad:
                 pass
-        if not self.ok:
-            return None
-        return Scene(name, dim, robots, objects, frozenset(ignore), workspace, self.path)
+        return out
+
+    def taken(self, out: "_Part", name: str, knode) -> bool:
+        """Report a robot or object name already defined (here or in an included scene)."""
+        if name not in out.robots and name not in out.raw:
+            return False
+        what = "a robot" if name in out.robots else "an object"
+        self.error(knode, f"'{name}' is already {what}", "duplicate", f"defined at {out.where[name]}")
+        return True
+
+    def include(self, node, chain: tuple[str, ...], out: "_Part") -> None:
+        """Merge the scenes named by `include:` (one path or a list) into `out`: a missing file,
+        a cycle (a scene including itself, directly or not) and a second definition of a name are
+        reported at the offending entry."""
+        import yaml
+
+        items = node.value if isinstance(node, yaml.SequenceNode) else [node]
+        for item in items:
+            try:
+                rel = self.string(item, "include")
+            except _Bad:
+                continue
+            path = (self.dir / rel).resolve()
+            if str(path) in chain:
+                cycle = " -> ".join(Path(c).name for c in chain + (str(path),))
+                self.error(item, f"scene include cycle: {cycle}", "cycle",
+                           "a scene cannot include itself, directly or through other scenes")
+                continue
+            try:
+                text = path.read_text(encoding="utf-8")
+            except FileNotFoundError:
+                self.error(item, f"included scene not found: {rel}", "missing-file",
+                           f"paths are relative to {self.dir}")
+                continue
+            except (OSError, UnicodeDecodeError) as exc:
+                self.error(item, f"cannot read included scene {rel}: {exc}", "unreadable-file")
+                continue
+            self.r.sources.add(str(path), text)
+            child = _Loader(str(path), self.r)
+            child.attr_spans = self.attr_spans
+            sub = child.part(text, chain + (str(path),))
+            out.loaders.append(child)
+            if sub is None:
+                self.ok = False
+                continue
+            out.loaders.extend(x for x in sub.loaders if x is not child)
+            if sub.dim is not None:
+                if out.dim is not None and out.dim != sub.dim:
+                    self.error(item, f"{rel} has dimension {sub.dim}, an earlier include "
+                               f"{out.dim}", "include")
+                    continue
+                out.dim = sub.dim
+            for n in list(sub.robots) + list(sub.raw):
+                if n in out.robots or n in out.raw:
+                    self.error(item, f"'{n}' is defined both in {rel} ({sub.where[n]}) and at "
+                               f"{out.where[n]}", "duplicate")
+            out.robots.update((k, v) for k, v in sub.robots.items() if k not in out.raw)
+            out.raw.update((k, v) for k, v in sub.raw.items() if k not in out.robots)
+            out.where.update({k: v for k, v in sub.where.items() if k not in out.where})
+            out.ignore.extend(sub.ignore)
+            out.name = out.name if out.name is not None else sub.name
+            out.workspace = out.workspace if out.workspace is not None else sub.workspace
 
     def resolve_poses(self, raw: dict[str, dict], robots: dict, dim: int) -> dict[str, SceneObject]:
         """World poses: compose along `parent:` chains (planar: SE2, then lifted to SE3)."""
@@ -492,8 +634,9 @@ class _Loader:
                 w = rel
             else:
                 pname, pnode = entry["parent"]
+                owner = entry.get("loader", self)
                 if pname in chain:
-                    self.fail(pnode, f"parent chain of '{name}' is a cycle: {' -> '.join(chain + [pname])}",
+                    owner.fail(pnode, f"parent chain of '{name}' is a cycle: {' -> '.join(chain + [pname])}",
                               "cycle")
                 if pname in raw:
                     pw = get(pname, chain + [pname])
@@ -503,7 +646,7 @@ class _Loader:
                     if dim == 2 and len(pw) != 3:
                         pw = (0.0, 0.0, 0.0)
                 else:
-                    self.fail(pnode, f"unknown parent '{pname}'", "unknown-name",
+                    owner.fail(pnode, f"unknown parent '{pname}'", "unknown-name",
                               did_you_mean(pname, list(raw) + list(robots)))
                 w = compose_se2(pw, rel) if dim == 2 else compose(pw, rel)
             world[name] = w
@@ -530,16 +673,12 @@ def load_scene(path: str | Path, reporter: Reporter, ref: Span | None = None) ->
 def load_scene_with_spans(path: str | Path, reporter: Reporter, ref: Span | None = None
                           ) -> tuple[Scene | None, dict[tuple[str, str], Span]]:
     """`load_scene` plus the positions of extra attribute keys, {(entity, key): span}."""
+    from gnppdsl.inputs import SCENE_SUFFIXES
+
     p = str(path)
-    try:
-        text = Path(p).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        reporter.error(ref, f"scene file not found: {p}", "missing-file")
+    text = read_source(reporter, p, ref, SCENE_SUFFIXES, "scene file")
+    if text is None:
         return None, {}
-    except (OSError, UnicodeDecodeError) as exc:
-        reporter.error(ref, f"cannot read scene file {p}: {exc}", "unreadable-file")
-        return None, {}
-    reporter.sources.add(p, text)
     loader = _Loader(p, reporter)
     return loader.load(text), loader.attr_spans
 

@@ -23,6 +23,8 @@ planner and to ipopt (max_wall_time), so the loop ends soon after it with status
 """
 from __future__ import annotations
 
+import time
+
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
@@ -30,11 +32,13 @@ from typing import Any, Sequence
 from gnppdsl.compile.sas import PartialState
 from gnppdsl.ir.model import Problem
 from gnppdsl.solve.compiled import Compiled, compile_problem, load_and_compile
+from gnppdsl import interrupt
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.options import Progress, SolveOptions
 from gnppdsl.solve.coverage import Coverage
-from gnppdsl.solve.result import TIME_LIMIT, Conflict, Result
+from gnppdsl.solve.result import INTERRUPTED, TIME_LIMIT, Conflict, Result
+from gnppdsl.solve.timing import annotate_motion
 
 
 class Loop(Coverage):
@@ -49,6 +53,9 @@ class Loop(Coverage):
         except TimeUp:
             return self.result(TIME_LIMIT, f"time limit of {self.options.time_limit:g} s reached "
                                            f"after {self.stats.plans} plans")
+        except interrupt.Interrupted as stop:          # SIGINT / SIGTERM / the run's alarm
+            return self.result(TIME_LIMIT if stop.reason == "time_limit" else INTERRUPTED,
+                               f"{stop.describe()} after {self.stats.plans} plans")
 
     def gnpp(self) -> Result:
         while True:
@@ -118,7 +125,9 @@ def solve_compiled(compiled: Compiled, options: SolveOptions | None = None,
                    progress: Progress | None = None) -> Result:
     """Solve an already compiled problem (a fresh planner, solver caches and database per call)."""
     options = (options or SolveOptions.from_settings(getattr(compiled.problem, "settings", None))).validated()
-    return Loop(compiled, options, progress).solve()
+    result = Loop(compiled, options, progress).solve()
+    annotate_motion(result, compiled)      # joint names, time stamps, world poses (timing.py)
+    return result
 
 
 def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, options: SolveOptions | None = None,
@@ -129,8 +138,10 @@ def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, opti
     Keyword overrides (algorithm, switches, time_limit, seed, ...) apply on top of `options`,
     or of the problem's own solver settings when `options` is None.
     """
+    started = (time.perf_counter(), time.process_time())     # loading and grounding count
     if isinstance(problem, Compiled):
         compiled = problem
+        started = (None, None)
     elif isinstance(problem, (str, Path, list, tuple)):
         compiled = load_and_compile(problem)
     else:
@@ -139,4 +150,6 @@ def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, opti
         options = SolveOptions.from_settings(getattr(compiled.problem, "settings", None), **overrides)
     elif overrides:
         options = replace(options, **{k: v for k, v in overrides.items() if v is not None}).validated()
+    if options.started is None:
+        options = replace(options, started=started[0], cpu_started=started[1])
     return solve_compiled(compiled, options, progress)
