@@ -40,13 +40,13 @@ def test_default_jit_compiles_in_the_background_and_the_next_solve_uses_the_kern
     s = first["stats"]
     assert s["kernels_queued"] > 0 and s["kernels_native"] == 0, s
     # the detached worker outlives the solve (at low priority: on a loaded machine it may take
-    # long); its jobs are directories in the cache until compiled into `<key>.so` (or rejected:
+    # long); its jobs are directories `jobs/<key>` until compiled into `<key>.so` (or rejected:
     # `<key>.failed`). No wall-clock deadline: wait while a worker holds the cache's lock; jobs
     # left with the lock free mean the worker is gone without finishing them: a failure.
-    from gnppdsl.nlp.jit_worker import try_lock
+    from gnppdsl.nlp.jit_worker import jobs as queued, try_lock
 
-    def jobs() -> list[str]:
-        return sorted(p.name for p in cache.iterdir() if p.is_dir())
+    def jobs() -> list[str]:           # the worker's own view of its queue (cache/jobs/<key>)
+        return [p.name for p in queued(cache)]
 
     while jobs():
         lock = try_lock(cache)
