@@ -18,7 +18,16 @@ $(VENV)/.installed: pyproject.toml setup.py
 	touch $@
 
 demo: setup
-	$(BIN)/gnpp solve examples/planar/p3_occupied.pntc
+	$(BIN)/gnpp solve examples/planar/p3_occupied.pntc --json out/demo.json
+	$(BIN)/gnpp view out/demo.json --html out/demo.html --force
+	@echo
+	@echo "Next steps:"
+	@echo "  open out/demo.html in a browser      the plan in 3-D: play, step through the actions, the conflict learned"
+	@echo "  . $(VENV)/bin/activate                 puts gnpp on your path (gnpp --help)"
+	@echo "  gnpp solve examples/lab/lab1.pntc --view   two Panda arms, opened in the viewer"
+	@echo "  docs/tutorial.md                     write and solve your own problem, view and export it"
+	@echo "  docs/api.md                          the same from Python or Jupyter"
+	@echo "  make test                            the test suite"
 
 test: setup
 	$(BIN)/python -m pytest $(PYTEST_ARGS)

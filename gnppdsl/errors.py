@@ -17,3 +17,9 @@ class SolveFailure(UserError):
     """The problem could not be solved: no plan, time limit, solver failure (exit code 1)."""
 
     exit_code = 1
+
+
+class NumericalFault(SolveFailure):
+    """A factor evaluates to NaN or infinity at the solver's point (a square root of a negative
+    number, a division by zero in a template): a fault of the model reported with the factor's
+    name (exit code 1), never mistaken for an infeasible plan ("no plan")."""

@@ -14,7 +14,8 @@ import re
 import sys
 from pathlib import Path
 
-from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
+from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
+                                     add_order_argument, check_outputs, check_ranges)
 from gnppdsl.cli.algorithms import AlgorithmSpec, parse_algorithms   # light as well
 
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
@@ -164,19 +165,25 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 def _write_text(path: str, text: str, option: str) -> None:
     from gnppdsl.errors import UserError
+    from gnppdsl.outputs import write_atomic
 
     try:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(text)
     except OSError as exc:
         raise UserError(f"{option} {path}: {exc.strerror or exc}") from None
+    write_atomic(path, text, option)
 
 
 def run(args: argparse.Namespace) -> int:
+    import contextlib
+
+    from gnppdsl.cli.status import BenchStatus
     from gnppdsl.cli.sweep import CsvJournal, RunSettings, grid, run_on_ray, run_serial
 
     specs = parse_algorithms(args.algorithms)
     _check_numbers(args)
+    check_ranges(args)
+    check_outputs(args, ("markdown", "plot"), parents_created=True)   # before minutes of benchmarking
     journal = CsvJournal(args.csv) if args.csv else None
     files = find_problems(args.paths)
     settings = RunSettings(time_limit=args.time_limit, max_horizon=args.max_horizon, order=args.order,
@@ -193,15 +200,16 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     skipped: list[str] = []
 
+    status = BenchStatus(len(todo)) if not args.quiet else None    # gnppdsl.cli.status
+
     def on_row(row: dict) -> None:
         if journal:
             journal.append(row)
         rows.append(typed({k: row.get(k) for k in row}))
-        if not args.quiet:
-            print(f"{row['problem']:16s} {row['algorithm']:10s} seed {row['seed']}: {row['status']:14s} "
-                  f"NLP {row.get('nlp_solves') or 0:4} cpu {float(row.get('cpu_time') or 0):6.2f} s "
-                  f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}",
-                  file=sys.stderr, flush=True)
+        if status is not None:
+            status.print_row(f"{row['problem']:16s} {row['algorithm']:10s} seed {row['seed']}: {row['status']:14s} "
+                             f"NLP {row.get('nlp_solves') or 0:4} cpu {float(row.get('cpu_time') or 0):6.2f} s "
+                             f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}")
 
     def on_error(file: str, err: Exception) -> None:
         print(f"gnpp bench: skipping {file}:\n{err}", file=sys.stderr)
@@ -210,11 +218,12 @@ def run(args: argparse.Namespace) -> int:
     if journal:
         journal.open()
     try:
-        if todo and (args.workers > 1 or args.address):
-            run_on_ray(todo, settings, on_row, workers=args.workers if not args.address else None,
-                       address=args.address)
-        elif todo:
-            run_serial(todo, settings, on_row, on_error)
+        with status or contextlib.nullcontext():
+            if todo and (args.workers > 1 or args.address):
+                run_on_ray(todo, settings, on_row, workers=args.workers if not args.address else None,
+                           address=args.address)
+            elif todo:
+                run_serial(todo, settings, on_row, on_error)
     finally:
         if journal:
             journal.close()

@@ -3,7 +3,11 @@
 Compile a problem and write one of:
 
 - `sas`      the grounded SAS+ task as Fast Downward `.sas` text (`PROBLEM.sas`);
-- `pddl`     the same task as PDDL (`domain.pddl` + `PROBLEM.pddl`);
+- `pddl`     the domain and problem as lifted PDDL (`domain.pddl` + `PROBLEM.pddl`: types,
+             parameterised actions, derived predicates when the domain has them;
+             `--inline-derived` substitutes them, for readers without derived predicates such
+             as Unified Planning); with `--conflicts` the reformulated task, ground;
+- `pddl-ground` the grounded SAS+ task as PDDL (one action per operator);
 - `asp`      the clingo program of the logic planner (`PROBLEM.lp`, runs with `clingo FILE`);
 - `factors`  the graph-NLP of a plan: variables and factor instances with their generating
              partial states (`PROBLEM.factors.txt`); `--plan` gives the actions (default: the
@@ -20,6 +24,7 @@ from pathlib import Path
 EPILOG = """examples:
   gnpp compile examples/planar/p1_one_block.pntc --emit sas
   gnpp compile examples/planar/p1_one_block.pntc --emit pddl -o out/
+  gnpp compile examples/lab/lab3.pntc --emit pddl --inline-derived
   gnpp compile examples/planar/p3_occupied.pntc --emit factors --plan "pick(b1, g, s1); place(b1, g, target)"
   gnpp compile examples/planar/p3_occupied.pntc --emit sas --conflicts conflicts.txt
 """
@@ -31,8 +36,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = EPILOG
     parser.add_argument("paths", nargs="+", metavar="PROBLEM",
                         help="the problem file (.pntc); a domain file may be given before it")
-    parser.add_argument("--emit", choices=("sas", "pddl", "asp", "factors"), default="sas",
+    parser.add_argument("--emit", choices=("sas", "pddl", "pddl-ground", "asp", "factors"), default="sas",
                         help="what to write (default: sas)")
+    parser.add_argument("--inline-derived", action="store_true",
+                        help="--emit pddl: substitute derived predicates into the formulas that use them")
     parser.add_argument("-o", "--output", metavar="DIR", default=None,
                         help="write the file(s) into DIR (created if needed) instead of stdout")
     parser.add_argument("--plan", metavar="PLAN|FILE", default=None,
@@ -47,6 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from gnppdsl.errors import UserError
 
+    if args.inline_derived and args.emit != "pddl":
+        raise UserError("--inline-derived only applies to --emit pddl")
     if args.plan is not None and args.emit != "factors":
         raise UserError("--plan only applies to --emit factors")
     if args.conflicts is not None and args.emit == "factors":
@@ -63,7 +72,12 @@ def run(args: argparse.Namespace) -> int:
         from gnppdsl.compile.sas_writer import write_sas
 
         files = [(f"{stem}.sas", write_sas(task))]
-    elif args.emit == "pddl":
+    elif args.emit == "pddl" and args.conflicts is None:
+        from gnppdsl.compile.pddl_lifted import write_lifted_pddl
+
+        out = write_lifted_pddl(problem, "inline" if args.inline_derived else "keep")
+        files = [("domain.pddl", out.domain), (f"{stem}.pddl", out.problem)]
+    elif args.emit in ("pddl", "pddl-ground"):
         from gnppdsl.compile.pddl import write_pddl
 
         out = write_pddl(task, problem.domain.name)
@@ -128,9 +142,14 @@ def _factors(problem, task, plan) -> str:
 
     text = ""
     if plan is not None:
+        from gnppdsl.inputs import InputError, is_regular_file, read_text
+
         path = Path(plan)
-        if path.is_file():
-            text = path.read_text()
+        if is_regular_file(path):
+            try:
+                text = read_text(path)
+            except InputError as exc:
+                raise UserError(f"--plan {plan}: {exc.message}") from None
         elif "(" not in plan and plan.strip() and (path.suffix or "/" in plan):
             raise UserError(f"--plan {plan}: no such file")
         else:
@@ -162,20 +181,16 @@ def _robot_dims(problem):
 
 
 def _write(files, out_dir) -> None:
-    from gnppdsl.errors import UserError
-
     if out_dir is None:
         for k, (name, text) in enumerate(files):
             if len(files) > 1:
                 sys.stdout.write(f"{';' if name.endswith('.pddl') else '#'} ---- {name} ----\n")
             sys.stdout.write(text)
         return
-    d = Path(out_dir)
-    try:
-        d.mkdir(parents=True, exist_ok=True)
-        for name, text in files:
-            (d / name).write_text(text)
-    except OSError as exc:
-        raise UserError(f"{out_dir}: cannot write: {exc.strerror or exc}") from None
+    from gnppdsl.outputs import output_dir, write_atomic
+
+    d = output_dir(out_dir, "-o")
+    for name, text in files:
+        write_atomic(d / name, text, "-o")
     for name, _ in files:
         print(d / name)

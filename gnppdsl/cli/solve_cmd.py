@@ -9,8 +9,14 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
+from dataclasses import replace
 
-from gnppdsl.cli.solver_args import add_curvature_argument, add_jit_argument, add_order_argument   # light imports
+from gnppdsl.cli.outputs import make_parent
+from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
+                                     add_order_argument, add_planner_argument, check_outputs,
+                                     check_ranges)
+from gnppdsl.solve.result import INTERRUPTED   # light (dataclasses only)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,6 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "n = convergence heuristic, g = database of solved subgraphs "
                              "(default: the problem's solver settings, usually 'trn')")
     add_order_argument(parser)
+    add_planner_argument(parser)
     add_jit_argument(parser)
     add_curvature_argument(parser)
     parser.add_argument("--time-limit", type=float, default=None, metavar="S", help="seconds for the whole solve")
@@ -32,50 +39,95 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", default=None, metavar="PATH",
                         help="persist the database of solved subgraphs in this SQLite file "
                              "(implies switch g); a later run on the same domain starts from it")
+    parser.add_argument("--active-set", action=argparse.BooleanOptionalAction, default=None,
+                        help="every solution is verified independently (pinocchio + coal); with the "
+                             "active set (default) the pairs it finds near join the plan's NLP until "
+                             "the verification is clean; --no-active-set: a rejected solution ends the "
+                             "solve as verification_failed")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the full result as JSON")
     parser.add_argument("--render", default=None, metavar="DIR", help="render the keyframes of the solution as images")
+    parser.add_argument("--view", action="store_true",
+                        help="open the solution in the browser 3-D viewer (as `gnpp view RESULT.json`)")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
     parser.add_argument("--tolerance", type=float, default=None, help="constraint violation tolerance")
-    parser.add_argument("--quiet", action="store_true", help="print only the final status line")
+    parser.add_argument("--quiet", action="store_true",
+                        help="print only the final status line (no progress on stderr)")
     parser.add_argument("--verbose", action="store_true", help="print each plan and conflict as found")
     parser.add_argument("--no-optimise", dest="optimise", action="store_false", default=None,
                         help="return the first feasible solution without minimising the domain's "
                              "`minimize` terms")
 
 
+#: seconds the hard alarm (`gnppdsl.interrupt.arm_time_limit`) waits after the loop's own
+#: deadline: the loop normally stops first and returns its partial result; the alarm is what
+#: ends a run stuck where no deadline check reaches, so the limit holds within a second
+ALARM_GRACE = 0.5
+
+
 def run(args: argparse.Namespace) -> int:
-    import gnppdsl                      # the public API: the command line solves through it
-    from gnppdsl.errors import SolveFailure, UserError
+    from gnppdsl import interrupt
+    from gnppdsl.errors import UserError
 
     if args.switches is not None and set(args.switches) - set("trng"):
         raise UserError(f"--switches: '{args.switches}' is not a subset of 'trng'")
-    if args.time_limit is not None and args.time_limit <= 0:
-        raise UserError("--time-limit must be positive")
-    if args.max_horizon is not None and args.max_horizon < 0:
-        raise UserError("--max-horizon must be >= 0")
-    from pathlib import Path
-
+    check_ranges(args)
     for opt, value in (("--json", args.json), ("--db", args.db)):
-        if value is not None and not Path(value).resolve().parent.is_dir():
-            raise UserError(f"{opt} {value}: directory {Path(value).resolve().parent} does not exist")
-    compiled = gnppdsl.load_and_compile(args.paths)
-    options = gnppdsl.SolveOptions.from_settings(
-        compiled.problem.settings,
-        algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
-        seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
-        order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
-        optimise=args.optimise,
-    )
-    progress = None
-    if args.verbose and not args.quiet:
-        def progress(msg: str) -> None:
-            emit(msg)
-    result = gnppdsl.solve_problem(compiled, options, progress=progress)
+        if value is not None:
+            make_parent(opt, value)         # created on a fresh clone (`gnppdsl.cli.outputs`)
+    check_outputs(args)
+    with interrupt.handlers():
+        return _run(args, time.monotonic())
+
+
+def _run(args: argparse.Namespace, start: float) -> int:
+    """Load, compile and solve under one time limit (loading and grounding count: the loop
+    gets what is left); SIGINT / SIGTERM / the alarm end it with the partial result."""
+    import gnppdsl                      # the public API: the command line solves through it
+    from gnppdsl import interrupt
+    from gnppdsl.errors import SolveFailure
+
+    if args.time_limit is not None:
+        interrupt.arm_time_limit(args.time_limit + ALARM_GRACE)
+    compiled = None
+    try:
+        with interrupt.interruptible():
+            compiled = gnppdsl.load_and_compile(args.paths)
+            options = gnppdsl.SolveOptions.from_settings(
+                compiled.problem.settings,
+                algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
+                seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
+                order=args.order, jit=args.jit, distance_curvature=args.distance_curvature, planner=args.planner,
+                active_set=args.active_set, optimise=args.optimise,
+            )
+            limit = options.time_limit
+            left = limit - (time.monotonic() - start)
+            if left <= 0:
+                raise interrupt.Interrupted("time_limit")
+            interrupt.arm_time_limit(left + ALARM_GRACE)
+            options = replace(options, time_limit=left)
+            if args.quiet:
+                result = gnppdsl.solve_problem(compiled, options)
+            else:   # a live status line on a terminal, a line per plan otherwise (gnppdsl.cli.status)
+                from gnppdsl.cli.status import SolveStatus
+
+                with SolveStatus(compiled.problem.name, options.time_limit,
+                                 echo=emit if args.verbose else None) as status:
+                    result = gnppdsl.solve_problem(compiled, options, progress=status)
+            result.time_limit = limit
+    except interrupt.Interrupted as stop:
+        result = _stopped(compiled, args, stop, time.monotonic() - start)
+    except Exception:
+        # a stop request that casadi turned into its own exception on the way out
+        if interrupt.pending() is None:
+            raise
+        result = _stopped(compiled, args, interrupt.Interrupted(interrupt.pending()),
+                          time.monotonic() - start)
+    stop_reason = interrupt.pending()
+    if stop_reason is not None and result.status not in (INTERRUPTED, "time_limit") and not result.solved:
+        result.status = INTERRUPTED if stop_reason != "time_limit" else "time_limit"
+    result = result.checked()
     if args.json:
-        try:
-            result.write_json(args.json)
-        except OSError as exc:
-            raise UserError(f"--json {args.json}: {exc.strerror or exc}") from None
+        result.write_json(args.json)
     if args.quiet:
         emit(f"{result.problem}: {'solved' if result.solved else result.status}"
              + (f", N = {result.stats.N}" if result.solved else f": {result.message}"))
@@ -83,16 +135,43 @@ def run(args: argparse.Namespace) -> int:
         emit(result.summary())
     if args.render and result.solved:
         _render(compiled, result, args.render)
+    if args.view and result.solved:
+        from gnppdsl.cli.view_cmd import show
+
+        show(result.to_json(), compiled)
+    if result.status == INTERRUPTED:
+        reason = stop_reason or "SIGINT"
+        print(f"gnpp: {result.problem} {interrupt.Interrupted(reason).describe()}"
+              + (f"; partial result in {args.json}" if args.json else ""), file=sys.stderr)
+        return interrupt.EXIT_CODES.get(reason, 130)
     if not result.solved:
         raise SolveFailure(f"gnpp: {result.problem} not solved: {result.message}")
     return 0
+
+
+def _stopped(compiled, args: argparse.Namespace, stop, elapsed: float):
+    """The result of a run stopped before the loop could return one (while loading, or
+    before the loop catches `Interrupted` itself): status interrupted / time_limit, what
+    is known so far."""
+    from pathlib import Path
+
+    from gnppdsl.solve.result import Result, Stats
+
+    status = "time_limit" if stop.reason == "time_limit" else INTERRUPTED
+    name = compiled.name if compiled is not None else Path(args.paths[-1]).stem
+    domain = compiled.domain_name if compiled is not None else ""
+    where = "while solving" if compiled is not None else "while loading"
+    return Result(problem=name, domain=domain, algorithm=args.algorithm or "gnpp",
+                  switches=args.switches or "", seed=args.seed or 0, status=status,
+                  message=f"{stop.describe()} {where} after {elapsed:.1f} s",
+                  stats=Stats(total_time=elapsed), time_limit=args.time_limit)
 
 
 def _render(compiled, result, directory: str) -> None:
     from gnppdsl.solve.keyframes import render_solution
 
     files = render_solution(compiled, result, directory)
-    emit(f"rendered {len(files)} keyframes to {directory}")
+    emit(f"rendered {len(files) - 1} keyframes and the animation plan.gif to {directory}")
 
 
 def emit(text: str) -> None:

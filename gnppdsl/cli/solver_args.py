@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from gnppdsl.ir.model import SOLVER_ORDERS
+from gnppdsl.ir.model import SOLVER_ORDERS, SOLVER_PLANNERS, setting_problem
 
 
 def add_order_argument(parser: argparse.ArgumentParser) -> None:
@@ -30,3 +30,56 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "(--no-distance-curvature: they enter linearised, cheaper iterations on "
                              "robot domains). Default: the problem's solver setting "
                              "`distance_curvature`, else on")
+
+
+def add_planner_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--planner", choices=SOLVER_PLANNERS, default=None,
+                        help="logic mode: auto (clingo's shortest plans while cheap, Fast Downward once "
+                             "a call's proofs of shorter horizons cost more than 2 s), sequential (clingo, "
+                             "shortest plans, exact N0), fd (Fast Downward, A* with FF on the task with the "
+                             "conflicts compiled in: short plans, not proven shortest). Default: the "
+                             "problem's solver setting `planner`, else auto")
+
+
+def check_ranges(args: argparse.Namespace) -> None:
+    """Range-check the numeric options `gnpp solve` and `gnpp bench` share, with the limits of
+    the `solver { }` block (`gnppdsl.ir.model.SETTING_RANGES`): NaN, infinity, a negative
+    time limit or a tolerance of 1e3 are errors naming the option, exit 2."""
+    from gnppdsl.errors import UserError
+
+    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+        value = getattr(args, key, None)
+        if value is None:
+            continue
+        problem = setting_problem(key, value)
+        if problem is not None:
+            option = "--" + key.replace("_", "-")
+            raise UserError(f"{option} {value}: {problem}")
+
+
+def check_outputs(args: argparse.Namespace, files: tuple[str, ...] = ("json", "db"),
+                  parents_created: bool = False) -> None:
+    """Refuse the output paths before any work (`gnppdsl.outputs`): a missing directory
+    (unless the command creates it), a symbolic link or a non-regular file at the options
+    `files` (`--json`, `--db`, ...), a link or a file at `--render`."""
+    import os
+    import stat
+
+    from gnppdsl.errors import UserError
+    from gnppdsl.outputs import check_target
+
+    for option in files:
+        value = getattr(args, option, None)
+        if value is not None:
+            check_target(value, f"--{option}", parents_created)
+    render = getattr(args, "render", None)
+    if render is not None:
+        try:
+            mode = os.lstat(render).st_mode
+        except FileNotFoundError:
+            return
+        except (OSError, ValueError) as exc:
+            raise UserError(f"--render {render}: {getattr(exc, 'strerror', None) or exc}") from None
+        if stat.S_ISLNK(mode) or not stat.S_ISDIR(mode):
+            raise UserError(f"--render {render}: not a directory (symbolic links are not followed)")
+

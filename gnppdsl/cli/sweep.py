@@ -93,7 +93,8 @@ def result_row(cell: Cell, res) -> dict:
         "total_time": round(s.total_time, 4), "cpu_time": round(s.cpu_time, 4), "plans": s.plans,
         "conflicts": s.conflicts, "db_feasible_hits": s.db_feasible_hits,
         "db_infeasible_hits": s.db_infeasible_hits, "reused_solutions": s.reused_solutions,
-        "N0": s.N0, "N": s.N, "max_violation": s.max_violation, "kernels_native": s.kernels_native,
+        # N0 only when the logic mode proved the first plan shortest (docs/design.md, "Logic modes")
+        "N0": s.N0 if s.N0_shortest is not False else None, "N": s.N, "max_violation": s.max_violation, "kernels_native": s.kernels_native,
         "kernels_compiled": s.kernels_compiled, "message": res.message,
     }
 

@@ -140,5 +140,8 @@ def plot(problems: Sequence[str], specs: Sequence[AlgorithmSpec], rows: Sequence
     ax.set_title("Table I: CPU time per problem")
     ax.legend(fontsize="small")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from gnppdsl.outputs import atomic_open
+
+    with atomic_open(path, "--plot", binary=True) as fh:     # never through a symbolic link
+        fig.savefig(fh, format="png", dpi=110)
     plt.close(fig)

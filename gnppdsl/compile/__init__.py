@@ -6,7 +6,8 @@ Modules (imported on demand, so `import gnppdsl.compile` stays cheap):
 - `task`       IR -> `SASTask` (`build_task`);
 - `semantics`  derived values, successor states, plan parsing (`plan_states`, `parse_plan`);
 - `sas_writer` Fast Downward `.sas` text (`write_sas`);
-- `pddl`       PDDL domain + problem (`write_pddl`);
+- `pddl`       PDDL domain + problem of the ground task (`write_pddl`);
+- `pddl_lifted` lifted PDDL of the domain as written (`write_lifted_pddl`);
 - `factors`    graph-NLP vertices (`VarInstance`, `FactorInstance`);
 - `factory`    the map Π on a state sequence (`GraphNLPFactory`).
 """
@@ -18,6 +19,7 @@ _EXPORTS = {
     "build_task": "gnppdsl.compile.task",
     "write_sas": "gnppdsl.compile.sas_writer",
     "write_pddl": "gnppdsl.compile.pddl",
+    "write_lifted_pddl": "gnppdsl.compile.pddl_lifted",
     "GraphNLPFactory": "gnppdsl.compile.factory",
     "ground_rules": "gnppdsl.compile.ground",
     "plan_states": "gnppdsl.compile.semantics",

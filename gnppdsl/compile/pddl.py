@@ -6,7 +6,9 @@ the PDDL is guaranteed to describe the *same* transition system, including tasks
 reformulated after conflicts. It stays readable because state variables keep their structure:
 the SAS+ fact `parent(b1) = s1` becomes the atom `(parent b1 s1)`, the boolean `free(g)`
 becomes `(free g)`. Actions are ground (no parameters) and named after the operator
-(`pick(b1, g, s1)` -> `pick_b1_g_s1`); `PDDLOutput.action_names` maps them back.
+(`pick(b1, g, s1)` -> `pick_b1_g_s1`); `PDDLOutput.action_names` maps them back. Used for tasks
+reformulated with conflicts and `gnpp compile --emit pddl-ground`; the lifted domain as written
+is `gnppdsl.compile.pddl_lifted`.
 
 Encoding (sound and complete for SAS+ semantics):
 - multi-valued variable v with value x: atom `(f args x)`; assigning x adds it and deletes the
@@ -14,7 +16,8 @@ Encoding (sound and complete for SAS+ semantics):
 - boolean variable (values false/true): atom `(f args)` true iff the value is "true"; testing
   "false" is a negative precondition.
 - derived variable: a 0-ary derived predicate, one disjunct per axiom; testing value 0 is a
-  negated derived atom (FD's translator and the `pddl` package both accept that).
+  negated derived atom (FD's translator and the `pddl` package both accept that);
+  `:derived-predicates` is required only when the task has axioms.
 - action costs through `total-cost`.
 """
 from __future__ import annotations
@@ -171,9 +174,10 @@ def write_pddl(task: SASTask, name: str | None = None) -> PDDLOutput:
     for pred, arity in enc.pred_arity.items():
         preds.append("(" + " ".join([pred] + [f"?a{k}" for k in range(arity)]) + ")")
     constants = sorted(set(enc.objects.forward.values()))
+    derived = " :derived-predicates" if task.axioms else ""
     head = [f"(define (domain {dname})",
             "  (:requirements :strips :negative-preconditions :disjunctive-preconditions "
-            ":conditional-effects :derived-predicates :action-costs)"]
+            f":conditional-effects{derived} :action-costs)"]
     if constants:
         head.append("  (:constants " + " ".join(constants) + ")")
     head.append("  (:predicates " + " ".join(preds) + ")")

@@ -29,6 +29,10 @@ from gnppdsl.conflicts.semantic import SemanticGraph, contains, isomorphic, mono
 from gnppdsl.errors import UserError
 
 SCHEMA_VERSION = 1
+#: SQLite `PRAGMA application_id` of a gnpp subgraph database ("GNPP"); `user_version` holds
+#: SCHEMA_VERSION. Both live in the file's 100-byte header, read before anything is written.
+APPLICATION_ID = 0x474E5050
+_HEADER_MAGIC = b"SQLite format 3\x00"
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (
@@ -47,6 +51,72 @@ CREATE TABLE IF NOT EXISTS subgraphs (
 );
 CREATE INDEX IF NOT EXISTS subgraphs_scope ON subgraphs (scope, fingerprint, feasible);
 """
+
+def _identify(path: Path) -> bool:
+    """True if `path` is to become a new database (missing or empty); else checks that the
+    existing file is a gnpp subgraph database (`UserError` if not), from its header bytes alone (nothing is
+    opened for writing, so a foreign file is left exactly as it was). Files written before
+    the identity pragmas existed (application_id 0) are accepted when their schema is this
+    module's, read through a read-only connection."""
+    import os
+    import stat
+
+    from gnppdsl.inputs import describe_os_error
+
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        if not path.parent.exists():
+            raise UserError(f"{path}: directory {path.parent} does not exist") from None
+        return True
+    except (OSError, ValueError) as exc:
+        raise UserError(f"{path}: {describe_os_error(exc)}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserError(f"{path}: is a directory, expected a database file")
+    if stat.S_ISLNK(st.st_mode) or not stat.S_ISREG(st.st_mode):
+        raise UserError(f"{path}: not a regular file (symbolic links are not followed)")
+    if st.st_size == 0:
+        return True
+    try:
+        with open(path, "rb") as fh:
+            header = fh.read(100)
+    except OSError as exc:
+        raise UserError(f"{path}: {describe_os_error(exc)}") from None
+    if len(header) < 100 or not header.startswith(_HEADER_MAGIC):
+        raise UserError(f"{path}: not a usable subgraph database (not an SQLite file); "
+                        "choose another --db path")
+    user_version = int.from_bytes(header[60:64], "big")
+    app_id = int.from_bytes(header[68:72], "big")
+    if app_id == APPLICATION_ID:
+        if user_version != SCHEMA_VERSION:
+            raise UserError(f"{path}: subgraph database has schema version {user_version}, this gnpp "
+                            f"uses version {SCHEMA_VERSION}; remove the file or choose another --db path")
+        return False
+    if app_id == 0 and user_version == 0 and _legacy_schema(path):
+        return False
+    raise UserError(f"{path}: not a gnpp subgraph database (an SQLite file of another application, "
+                    f"application_id {app_id:#x}); it was not modified; choose another --db path")
+
+
+def _legacy_schema(path: Path) -> bool:
+    """An unstamped file whose tables are exactly `_SCHEMA`'s (read-only connection)."""
+    from urllib.parse import quote
+
+    want = {}
+    for stmt in filter(str.strip, _SCHEMA.split(";")):
+        words = stmt.replace("IF NOT EXISTS ", "").split()
+        want[words[2]] = " ".join(words)             # CREATE TABLE|INDEX name ...
+    try:
+        conn = sqlite3.connect(f"file:{quote(str(path.resolve()))}?mode=ro", uri=True, timeout=30.0)
+        try:
+            rows = conn.execute("SELECT name, sql FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'").fetchall()
+        finally:
+            conn.close()
+    except sqlite3.Error:
+        return False
+    have = {name: " ".join((sql or "").split()) for name, sql in rows}
+    return have == want
+
 
 Names = tuple[tuple[tuple[str, str], ...], ...]   # partial states by name, one tuple per step
 
@@ -89,12 +159,17 @@ class SubgraphDatabase:
 
     # ---- persistence -------------------------------------------------------------------------
     def _open(self, path: Path) -> None:
-        if path.exists() and path.is_dir():
-            raise UserError(f"{path}: is a directory, expected a database file")
-        if not path.parent.exists():
-            raise UserError(f"{path}: directory {path.parent} does not exist")
+        fresh = _identify(path)                 # refuses a foreign file before any write
         try:
             conn = sqlite3.connect(str(path), timeout=30.0)
+            if fresh:
+                # identity first, in rollback-journal mode, so it is in the main file's header
+                # (not only in a WAL a kill -9 could leave behind) before any record exists
+                with conn:
+                    conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                    conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+                    for stmt in filter(str.strip, _SCHEMA.split(";")):
+                        conn.execute(stmt)
             conn.execute("PRAGMA journal_mode=WAL")
             conn.execute("PRAGMA synchronous=NORMAL")
             with conn:
@@ -132,8 +207,10 @@ class SubgraphDatabase:
         self.stats.loaded = len(rows)
 
     def _persist(self, entry: Entry) -> None:
-        if self._conn is None:
-            return
+        from gnppdsl import interrupt
+
+        if self._conn is None or interrupt.pending():
+            return        # a verdict reached after SIGINT/SIGTERM may rest on a cut-short run
         conflict = json.dumps([[list(f) for f in p] for p in entry.conflict]) if entry.conflict is not None else None
         with self._conn:   # one transaction per record: all or nothing
             self._conn.execute(

@@ -172,23 +172,54 @@ def _ignored(a: _Placed, b: _Placed, ignore: set[frozenset]) -> bool:
     return False
 
 
+def sphere_bounds(ctx, bodies: list[_Placed]) -> tuple[np.ndarray, np.ndarray]:
+    """World centres (n x 3) and radii (n) of the bodies' bounding spheres: the broadphase.
+
+    |c_a - c_b| - r_a - r_b is a lower bound of the pair's signed distance (the spheres contain
+    the convex hulls), so a pair whose bound exceeds a cutoff needs no exact query. Why spheres
+    and not coal's DynamicAABBTreeCollisionManager: the manager answers collision / nearest-pair
+    queries, not "every pair closer than a cutoff"; with < 60 bodies per state the all-pairs
+    bound is one numpy expression (measured: 30 us per Lab state, against 5-6 ms for the exact
+    queries it saves)."""
+    planar = ctx.scene.dimension == 2
+    cs, rs = np.zeros((len(bodies), 3)), np.zeros(len(bodies))
+    for i, p in enumerate(bodies):
+        c, r = p.body.bounding_sphere(planar)
+        cs[i] = p.T[:3, :3] @ c + p.T[:3, 3]
+        rs[i] = r
+    return cs, rs
+
+
 def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterable[str]] = (), models=None,
-                   self_collision: bool = True) -> list[PairDistance]:
+                   self_collision: bool = True, cutoff: float | None = None,
+                   keep: Any = None) -> list[PairDistance]:
     """Signed distances of every relevant pair, smallest first.
 
     Relevant: object-object (unless both static; a robot link no joint moves counts as static when
     the robot's base is the scene's), robot link-object, links of different robots,
     and each robot's self-collision pairs (SRDF-filtered); minus the scene's
     `ignore_collisions` and `ignore` (e.g. a held object and its robot, a block and its support).
+    `cutoff`: pairs whose bounding spheres are farther apart than this are left out (their
+    distance is larger; see `sphere_bounds`). `keep(a, b)`: a filter on the placed bodies
+    (e.g. the categories a domain's `avoid` declaration names).
     """
     ctx = _as_ctx(ctx_or_scene, models)
     ign = {frozenset(p) for p in ctx.scene.ignore_collisions} | {frozenset(p) for p in ignore}
     bodies = placed_bodies(ctx, state)
     self_pairs = {name: {frozenset(p) for p in ctx.robot(name).self_pairs}
                   for name, s in ctx.scene.robots.items() if s.kind == "urdf"} if self_collision else {}
+    if cutoff is not None and bodies:
+        cs, rs = sphere_bounds(ctx, bodies)
+        gap = np.linalg.norm(cs[:, None, :] - cs[None, :, :], axis=2) - rs[:, None] - rs[None, :]
+        ii, jj = np.nonzero(np.triu(gap <= cutoff, 1))        # the candidates, in one expression
+        candidates = ((bodies[i], bodies[j]) for i, j in zip(ii.tolist(), jj.tolist()))
+    else:
+        candidates = itertools.combinations(bodies, 2)
     out = []
-    for a, b in itertools.combinations(bodies, 2):
+    for a, b in candidates:
         if a.static and b.static:
+            continue
+        if keep is not None and not keep(a, b):
             continue
         if a.owner == b.owner:
             if a.owner not in self_pairs:

@@ -410,9 +410,27 @@ class Relaxation:
     span: Span | None = field(**_SPAN)
 
 
+AVOID_CATEGORIES = ("robots", "objects", "scene")
+
+
+@dataclass(frozen=True)
+class Avoid:
+    """`avoid robots, objects, scene margin 0.01`: every pair of bodies of these categories
+    keeps `margin` at every keyframe, waypoint and segment midpoint (robot links: with each
+    robot's SRDF-filtered self pairs; objects: the movable objects; scene: static bodies and the
+    scene objects a problem does not declare). The engine enforces it by an active set over the
+    independent verification's pairs (`gnppdsl.solve.active_set`), no rule lists them."""
+
+    categories: tuple[str, ...]
+    margin: float = 0.0
+    span: Span | None = field(**_SPAN)
+
+
 SOLVER_ALGORITHMS = ("gnpp", "oneway", "rlgp")
 SOLVER_NLPS = ("ipopt", "sqpmethod")
 SOLVER_ORDERS = ("full_first", "relaxed_first", "staged")
+# logic modes (gnppdsl.logic.modes): auto = sequential while cheap, then Fast Downward
+SOLVER_PLANNERS = ("auto", "sequential", "fd")
 
 
 @dataclass(frozen=True)
@@ -434,6 +452,10 @@ class SolverSettings:
                 ("full_first", "relaxed_first", "staged"; None: the solver's default)
     jit         large derivative kernels as compiled C (cached on disk; `gnppdsl.nlp.jit`): true =
                 compile during the solve, false = never, None = in the background for later solves
+    planner     logic mode: "auto" (clingo's shortest plans while a call's proofs stay under 2 s,
+                then Fast Downward), "sequential" (clingo, shortest plans: exact N0), "fd" (Fast
+                Downward's A* with FF on the Appendix-B task: short plans, no proof); see
+                `gnppdsl.logic.modes` and docs/design.md "Logic modes and their guarantees"
     distance_curvature
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
@@ -454,6 +476,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
+    planner: str = "auto"
     optimise: bool = True
 
     def merged(self, **overrides) -> "SolverSettings":
@@ -464,8 +487,46 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool, "distance_curvature": bool, "optimise": bool,
+    "order": str, "jit": bool, "distance_curvature": bool, "planner": str, "optimise": bool,
 }
+
+#: accepted ranges of the numeric solver settings and their command-line twins (inclusive).
+#: Why these bounds: ipopt cannot reach a violation below ~1e-10 in double precision (1e-30
+#: ended in "no plan"), and above 1e-2 a "solved" plan can be visibly wrong (`--tolerance 1e3`
+#: returned a violation of 0.5); a seed must fit numpy's 32-bit generator seed.
+SETTING_RANGES: dict[str, tuple[float, float]] = {
+    "tolerance": (1e-10, 1e-2), "time_limit": (1e-6, 1e7), "seed": (0, 2**32 - 1),
+    "waypoints": (2, 10_000), "max_horizon": (1, 10_000), "max_iter": (1, 10_000_000),
+}
+
+
+def setting_problem(key: str, value) -> str | None:
+    """Why `value` is not acceptable for the numeric setting `key` ("is out of range [a, b]",
+    "must be a finite number"), or None if it is. Callers put the setting's name in front."""
+    import math
+
+    if key not in SETTING_RANGES:
+        return None
+    lo, hi = SETTING_RANGES[key]
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return "must be a number"
+    if not math.isfinite(v):
+        return "must be a finite number"
+    if not lo <= v <= hi:
+        return f"is out of range [{lo:g}, {hi:,}]" if isinstance(hi, int) else f"is out of range [{lo:g}, {hi:g}]"
+    return None
+    lo, hi = SETTING_RANGES[key]
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return f"{key} must be a number"
+    if not math.isfinite(v):
+        return f"{key} must be a finite number, not {value}"
+    if not lo <= v <= hi:
+        return f"{key} = {value} is out of range [{lo:g}, {hi:g}]"
+    return None
 
 
 @dataclass(frozen=True)
@@ -569,6 +630,7 @@ class Domain:
     modules: dict[str, Module] = field(default_factory=dict)
     world_space: Space = Space("SE3", 7)
     span: Span | None = field(**_SPAN)
+    avoid: Avoid | None = None       # the `avoid` declaration (None: every category, margin 0)
 
     # ---- the type hierarchy --------------------------------------------------------------
     def ancestors(self, type_name: str) -> tuple[str, ...]:

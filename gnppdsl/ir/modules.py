@@ -109,9 +109,11 @@ class ModuleLibrary:
 
     # ------------------------------------------------------------------ modules
     def find_module(self, name: str, from_dir: Path) -> Path | None:
+        from gnppdsl.inputs import is_regular_file
+
         for d in (from_dir, self.stdlib):
             p = d / f"{name}.pntc"
-            if p.is_file():
+            if is_regular_file(p):          # False, not OSError, for a 300-character name
                 return p
         return None
 
@@ -222,7 +224,7 @@ class ModuleLibrary:
                     best = (t, rep)
             templates[f"{env.name}.{short}"] = best[0]
             for dgn in best[1].diagnostics:
-                self.reporter.diagnostics.append(dgn) if dgn not in self.reporter.diagnostics else None
+                self.reporter.add(dgn)
         return M.Module(env.name, env.path, tuple(m.name for m in env.uses), dict(env.consts),
                         templates, dict(env.scene_attrs), dict(env.primitives), env.file.header.span)
 
@@ -380,16 +382,18 @@ _HEADER = re.compile(r"^\s*(domain|problem|module)\s+([A-Za-z_]\w*)", re.M)
 
 def peek_header(path: Path) -> tuple[str, str] | None:
     """The header of a file without parsing it all (comments skipped)."""
-    try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            for line in fh:
-                s = line.split("#", 1)[0].strip()
-                if not s:
-                    continue
-                m = _HEADER.match(s)
-                return (m.group(1), m.group(2)) if m else None
-    except OSError:
+    from gnppdsl.inputs import InputError, read_bytes
+
+    try:                                 # regular files only: a FIFO named x.pntc must not block
+        data = read_bytes(path)
+    except InputError:
         return None
+    for line in data.decode("utf-8", errors="replace").splitlines():
+        s = line.split("#", 1)[0].strip()
+        if not s:
+            continue
+        m = _HEADER.match(s)
+        return (m.group(1), m.group(2)) if m else None
     return None
 
 
@@ -416,6 +420,7 @@ DECL_WORDS = {
     ast.FrameDecl: "frame", ast.TemplateDecl: "template", ast.SceneAttrDecl: "scene",
     ast.PrimitiveDecl: "primitive", ast.RuleDecl: "rule", ast.RelaxationsDecl: "relaxations",
     ast.SolverDecl: "solver", ast.ReachabilityDecl: "reachability", ast.SceneRef: "scene",
+    ast.AvoidDecl: "avoid",
     ast.ObjectsDecl: "objects", ast.InitDecl: "init", ast.GoalDecl: "goal",
 }
 

@@ -159,8 +159,13 @@ class DomainResolver:
         relax = ()
         settings = M.SolverSettings()
         reach = []
+        avoid = None
         for d in items:
-            if isinstance(d, ast.RelaxationsDecl):
+            if isinstance(d, ast.AvoidDecl):
+                if avoid is not None:
+                    self.err(d.span, "a second avoid declaration", "duplicate")
+                avoid = self.avoid_decl(d)
+            elif isinstance(d, ast.RelaxationsDecl):
                 if relax:
                     self.err(d.span, "a second relaxations block", "duplicate")
                 relax = settings_relaxations(self, d)
@@ -184,7 +189,27 @@ class DomainResolver:
             templates=templates, rules=rules, relaxations=tuple(relax), settings=settings,
             reachability=tuple(reach), scene_attrs=dict(self.scene_attrs),
             primitives=dict(self.primitives), modules=modules, world_space=self.world_space,
-            span=f.header.span)
+            span=f.header.span, avoid=avoid)
+
+    def avoid_decl(self, d: ast.AvoidDecl) -> M.Avoid | None:
+        cats = []
+        for n in d.categories:
+            if n.value not in M.AVOID_CATEGORIES:
+                self.err(n.span, f"unknown avoid category '{n.value}'", "unknown-name",
+                         did_you_mean(n.value, M.AVOID_CATEGORIES) or "one of " + ", ".join(M.AVOID_CATEGORIES))
+                return None
+            if n.value in cats:
+                self.err(n.span, f"'{n.value}' is named twice", "duplicate")
+                return None
+            cats.append(n.value)
+        margin = 0.0
+        if d.margin is not None:
+            v = d.margin.value if isinstance(d.margin, ast.ENum) else None
+            if v is None or v < 0:
+                self.err(d.margin.span, "the avoid margin must be a number >= 0", "setting")
+                return None
+            margin = v
+        return M.Avoid(tuple(cats), float(margin), d.span)
 
     # ---- types
     def resolve_types(self) -> None:

@@ -72,12 +72,16 @@ def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverS
             res.err(s.value.span, f"unknown order '{v}'", "setting",
                     did_you_mean(v, M.SOLVER_ORDERS) or "one of " + ", ".join(M.SOLVER_ORDERS))
             continue
+        if k == "planner" and v not in M.SOLVER_PLANNERS:
+            res.err(s.value.span, f"unknown planner '{v}'", "setting",
+                    did_you_mean(v, M.SOLVER_PLANNERS) or "one of " + ", ".join(M.SOLVER_PLANNERS))
+            continue
         if k == "switches" and (set(v) - set("trng") or len(set(v)) != len(v)):
             res.err(s.value.span, f"switches are letters among t, r, n, g (each once), got '{v}'", "setting")
             continue
-        if k in ("tolerance", "time_limit") and v <= 0 or k in ("waypoints",) and v < 2 \
-                or k in ("max_horizon", "max_iter") and v < 1 or k == "seed" and v < 0:
-            res.err(s.value.span, f"'{k}' = {v} is out of range", "setting")
+        problem = M.setting_problem(k, v)
+        if problem is not None:
+            res.err(s.value.span, f"'{k}' = {v} {problem}", "setting")
             continue
         vals[k] = v
     return base.merged(**vals)

@@ -12,9 +12,10 @@ import math
 from pathlib import Path
 from typing import Any
 
+from gnppdsl.inputs import ROBOT_SUFFIXES
 from gnppdsl.ir.expr import Span
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
-from gnppdsl.lang.diagnostics import Reporter, did_you_mean
+from gnppdsl.lang.diagnostics import Reporter, did_you_mean, read_source
 
 TOP_KEYS = ("name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
 ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "base_joint", "ee", "locked",
@@ -82,6 +83,18 @@ def compose_se2(a, b):
     return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], th)
 
 
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:               # a 400-digit YAML integer
+        return False
+
+
+def _short(text: str, n: int = 80) -> str:
+    """A path as quoted in a message (a 10,000-character name is cut)."""
+    return text if len(text) <= n else f"{text[:n]}... ({len(text):,} characters)"
+
+
 # ----------------------------------------------------------------------------------------
 # the loader
 # ----------------------------------------------------------------------------------------
@@ -139,8 +152,11 @@ class _Loader:
 
     def number(self, node, what: str) -> float:
         v = self.scalar(node)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
             self.fail(node, f"{what} must be a number")
+        if not _finite(v):
+            self.fail(node, f"{what} must be a finite number, not {node.value[:24]}", "number",
+                      "NaN and infinity have no place in a scene")
         return float(v)
 
     def numbers(self, node, what: str, n: int | tuple[int, ...] | None = None) -> tuple[float, ...]:
@@ -166,11 +182,34 @@ class _Loader:
             self.fail(node, f"{what} must be true or false")
         return v
 
-    def file(self, node, what: str) -> str:
+    def file(self, node, what: str, suffixes: tuple[str, ...] | None = None, directory: bool = False) -> str:
+        """A path named by the scene, relative to the scene file: a regular file (or a
+        directory) that exists, with one of `suffixes` if given; never opened here, so a
+        wrong path is refused without reading it (`gnppdsl.inputs`)."""
+        import os
+        import stat as st
+
+        from gnppdsl.inputs import MAX_INPUT_BYTES, describe_os_error
+
         rel = self.string(node, what)
-        p = (self.dir / rel).resolve()
-        if not p.exists():
-            self.fail(node, f"{what} not found: {rel}", "missing-file", f"paths are relative to {self.dir}")
+        if suffixes is not None and Path(rel).suffix.lower() not in suffixes:
+            self.fail(node, f"{what} must be a {' or '.join(suffixes)} file", "bad-file")
+        try:
+            p = (self.dir / rel).resolve()
+            mode = os.stat(p)
+        except (OSError, ValueError, RuntimeError) as exc:
+            reason = describe_os_error(exc) if not isinstance(exc, RuntimeError) else "a symbolic link loop"
+            if reason == "no such file":
+                self.fail(node, f"{what} not found: {_short(rel)}", "missing-file",
+                          f"paths are relative to {self.dir}")
+            self.fail(node, f"{what} {_short(rel)}: {reason}", "bad-file")
+        if directory and not st.S_ISDIR(mode.st_mode):
+            self.fail(node, f"{what} {_short(rel)} is not a directory", "bad-file")
+        if not directory and not st.S_ISREG(mode.st_mode):
+            self.fail(node, f"{what} {_short(rel)} is not a regular file", "bad-file",
+                      "devices, FIFOs and directories are not read")
+        if not directory and suffixes is not None and mode.st_size > MAX_INPUT_BYTES:
+            self.fail(node, f"{what} {_short(rel)} is larger than {MAX_INPUT_BYTES:,} bytes", "bad-file")
         return str(p)
 
     def unknown_key(self, key_node, key: str, known: tuple[str, ...], what: str) -> None:
@@ -192,6 +231,10 @@ class _Loader:
             return vals
         v = self.scalar(val_node)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
+            if not _finite(v):
+                self.error(val_node, f"attribute '{key}' must be a finite number, not {val_node.value[:24]}",
+                           "number", "NaN and infinity have no place in a scene")
+                return None
             self.attr_spans[(entity, key)] = self.span(key_node)
             return float(v)
         self.unknown_key(key_node, key, known, what)
@@ -330,8 +373,8 @@ class _Loader:
             self.fail(knode, f"robot '{name}' needs exactly one of `model:` (example-robot-data name) "
                       "or `urdf:` (a file)")
         model = self.string(m["model"][1], "model") if "model" in m else None
-        urdf = self.file(m["urdf"][1], "URDF file") if "urdf" in m else None
-        srdf = self.file(m["srdf"][1], "SRDF file") if "srdf" in m else None
+        urdf = self.file(m["urdf"][1], "URDF file", ROBOT_SUFFIXES) if "urdf" in m else None
+        srdf = self.file(m["srdf"][1], "SRDF file", ROBOT_SUFFIXES) if "srdf" in m else None
         pdirs = ()
         if "package_dirs" in m:
             import yaml
@@ -339,7 +382,7 @@ class _Loader:
             pn = m["package_dirs"][1]
             if not isinstance(pn, yaml.SequenceNode):
                 self.fail(pn, "package_dirs must be a list of directories")
-            pdirs = tuple(self.file(x, "package directory") for x in pn.value)
+            pdirs = tuple(self.file(x, "package directory", directory=True) for x in pn.value)
         base = self.pose(m["base"][1], 3) if "base" in m else IDENTITY
         ee = self.string(m["ee"][1], "ee") if "ee" in m else None
         locked = {}
@@ -530,16 +573,12 @@ def load_scene(path: str | Path, reporter: Reporter, ref: Span | None = None) ->
 def load_scene_with_spans(path: str | Path, reporter: Reporter, ref: Span | None = None
                           ) -> tuple[Scene | None, dict[tuple[str, str], Span]]:
     """`load_scene` plus the positions of extra attribute keys, {(entity, key): span}."""
+    from gnppdsl.inputs import SCENE_SUFFIXES
+
     p = str(path)
-    try:
-        text = Path(p).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        reporter.error(ref, f"scene file not found: {p}", "missing-file")
+    text = read_source(reporter, p, ref, SCENE_SUFFIXES, "scene file")
+    if text is None:
         return None, {}
-    except (OSError, UnicodeDecodeError) as exc:
-        reporter.error(ref, f"cannot read scene file {p}: {exc}", "unreadable-file")
-        return None, {}
-    reporter.sources.add(p, text)
     loader = _Loader(p, reporter)
     return loader.load(text), loader.attr_spans
 

@@ -389,6 +389,15 @@ class RelaxationAst:
 
 
 @dataclass(frozen=True)
+class AvoidDecl:
+    """`avoid robots, objects, scene margin 0.01`: the categories whose bodies keep clear."""
+
+    categories: tuple[Name, ...]
+    margin: Any = None               # an expression (folded to a number), None: 0
+    span: Span | None = field(**_S)
+
+
+@dataclass(frozen=True)
 class RelaxationsDecl:
     items: tuple[RelaxationAst, ...]
     span: Span | None = field(**_S)
@@ -467,7 +476,7 @@ class GoalDecl:
 Decl = Union[UseDecl, TypeDecl, ConstDecl, ConstantsDecl, StateDecl, DerivedDecl, ActionDecl,
              ContinuousDecl, FrameDecl, TemplateDecl, SceneAttrDecl, PrimitiveDecl, RuleDecl,
              RelaxationsDecl, SolverDecl, ReachabilityDecl, SceneRef, ObjectsDecl, InitDecl,
-             GoalDecl]
+             GoalDecl, AvoidDecl]
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,19 @@ from gnppdsl.lang import ast
 from gnppdsl.lang.diagnostics import Reporter
 
 MAX_SYNTAX_ERRORS = 20
+#: deepest parse tree accepted (brackets, parentheses, prefix operators, chains of `+`, `and`,
+#: `[i]` each add a level). The bundled files reach 14; the transformer, the resolvers, the
+#: type checker and the casadi lowering recurse once or a few times per level, so a bound far
+#: below Python's recursion limit turns 1,000 nested `[` into a located message, not a
+#: RecursionError (tests/lang/test_lang_limits.py checks every stage at this depth).
+MAX_NESTING = 100
+#: largest `R[n]`
+MAX_VECTOR_DIMENSION = 10_000
 
 # words that start a declaration (used for error recovery and keyword hints)
 DECL_KEYWORDS = (
     "domain", "problem", "module", "use", "type", "const", "constants", "state", "derived",
-    "action", "continuous", "traj", "frame", "template", "rule", "relaxations", "solver",
+    "action", "continuous", "traj", "frame", "template", "rule", "relaxations", "solver", "avoid",
     "reachability", "scene", "primitive", "objects", "init", "goal",
 )
 _DECL_LINE = re.compile(r"^\s*(%s)\b" % "|".join(DECL_KEYWORDS))
@@ -101,7 +109,10 @@ class _Supertype(ast.Name):
     pass
 
 
-def _make_transformer(path: str):
+def _make_transformer(path: str, problems: list):
+    """The lark Transformer to the AST. Values a token cannot hold (a number that overflows
+    a float, `R[1e400]`) are appended to `problems` as (span, message, hint) and replaced by
+    a harmless value, so a file gets one located diagnostic per bad literal."""
     from lark import Token, Transformer, v_args
 
     def sp(meta) -> Span | None:
@@ -118,8 +129,22 @@ def _make_transformer(path: str):
     def real(children):
         return [c for c in children if c is not None]
 
+    def finite(t: Token) -> float:
+        v = float(t)
+        if v != v or v in (float("inf"), float("-inf")):
+            problems.append((tok_span(t), f"number {_short(str(t))} is out of range",
+                             "numbers must fit a 64-bit float (at most about 1.8e308)"))
+            return 0.0
+        return v
+
     def num(t: Token) -> ast.ENum:
-        return ast.ENum(float(t), str(t), tok_span(t))
+        return ast.ENum(finite(t), str(t), tok_span(t))
+
+    def setting_number(t: Token) -> int | float:
+        text = str(t)
+        if re.fullmatch(r"[0-9]+", text) and len(text) <= 18:
+            return int(text)
+        return finite(t)
 
     @v_args(meta=True)
     class ToAst(Transformer):
@@ -271,7 +296,15 @@ def _make_transformer(path: str):
             return ast.SpaceAst(name(c[0]), None, None, sp(m))
 
         def space_vec(self, m, c):
-            return ast.SpaceAst(name(c[0]), int(float(c[1])), None, sp(m))
+            before = len(problems)
+            v = finite(c[1])
+            if len(problems) > before:           # one diagnostic per literal
+                v = 1
+            elif v != int(v) or not 1 <= v <= MAX_VECTOR_DIMENSION:
+                problems.append((tok_span(c[1]), f"vector dimension {_short(str(c[1]))} is not a "
+                                 f"whole number from 1 to {MAX_VECTOR_DIMENSION:,}", None))
+                v = 1
+            return ast.SpaceAst(name(c[0]), int(v), None, sp(m))
 
         def space_app(self, m, c):
             return ast.SpaceAst(name(c[0]), None, name(c[1]), sp(m))
@@ -444,6 +477,11 @@ def _make_transformer(path: str):
         def relaxations_decl(self, m, c):
             return ast.RelaxationsDecl(tuple(c), sp(m))
 
+        def avoid_decl(self, m, c):
+            names = tuple(name(t) for t in c if isinstance(t, Token))
+            margin = next((x for x in c if not isinstance(x, Token)), None)
+            return ast.AvoidDecl(names, margin, sp(m))
+
         def setting(self, m, c):
             return ast.Setting(name(c[0]), c[1], sp(m))
 
@@ -451,14 +489,10 @@ def _make_transformer(path: str):
             return ast.SolverDecl(tuple(c), sp(m))
 
         def v_number(self, m, c):
-            t = str(c[0])
-            v = int(t) if re.fullmatch(r"[0-9]+", t) else float(t)
-            return ast.Value(v, "number", sp(m))
+            return ast.Value(setting_number(c[0]), "number", sp(m))
 
         def v_negative(self, m, c):
-            t = str(c[0])
-            v = int(t) if re.fullmatch(r"[0-9]+", t) else float(t)
-            return ast.Value(-v, "number", sp(m))
+            return ast.Value(-setting_number(c[0]), "number", sp(m))
 
         def v_string(self, m, c):
             return ast.Value(str(c[0])[1:-1], "string", sp(m))
@@ -495,6 +529,37 @@ def _make_transformer(path: str):
             return ast.GoalDecl(tuple(c[0]), sp(m))
 
     return ToAst()
+
+
+def _short(text: str, n: int = 24) -> str:
+    """A literal as quoted in a message: a 5,000-digit number shows its first digits only."""
+    return text if len(text) <= n else f"{text[:n]}... ({len(text):,} characters)"
+
+
+def _too_deep(tree) -> object | None:
+    """The first node deeper than `MAX_NESTING` (iterative: this is what guards recursion)."""
+    from lark import Tree
+
+    stack = [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_NESTING:
+            return node
+        if isinstance(node, Tree):
+            stack.extend((c, depth + 1) for c in node.children)
+    return None
+
+
+def _node_span(node, path: str) -> Span:
+    """Where a tree node or token starts (its first token when the node has no position)."""
+    from lark import Tree
+
+    while isinstance(node, Tree) and getattr(node.meta, "empty", True) and node.children:
+        node = node.children[0]
+    meta = node.meta if isinstance(node, Tree) else node
+    line = getattr(meta, "line", None) or 1
+    col = getattr(meta, "column", None) or 1
+    return Span(path, line, col, getattr(meta, "end_line", None), getattr(meta, "end_column", None))
 
 
 # ----------------------------------------------------------------------------------------
@@ -534,13 +599,14 @@ def _syntax_diagnostic(err, path: str, text: str, reporter: Reporter) -> int:
         return line
     if isinstance(err, UnexpectedCharacters):
         ch = text[err.pos_in_stream] if 0 <= err.pos_in_stream < len(text) else "?"
+        shown = ch if ch.isprintable() else f"U+{ord(ch):04X}"
         hint = None
         if ch == '"':
             hint = "strings are written in double quotes and end on the same line"
         elif ch in "{}":
             hint = "check the braces of the enclosing block"
         reporter.error(Span(path, err.line, err.column, err.line, err.column + 1),
-                       f"unexpected character '{ch}'", "syntax", hint)
+                       f"unexpected character '{shown}'", "syntax", hint)
         return err.line
     if isinstance(err, UnexpectedEOF):
         lines = text.splitlines() or [""]
@@ -575,37 +641,34 @@ def _tags_hint(text: str, pos: int | None) -> str | None:
 # ----------------------------------------------------------------------------------------
 # AST cache: unchanged files (the standard library above all) are not re-parsed
 # ----------------------------------------------------------------------------------------
-_CACHE_VERSION = "1"
+_CACHE_VERSION = "2"          # 2: JSON (gnppdsl.lang.ast_json) instead of pickle
 
 
 @lru_cache(maxsize=1)
 def _cache_dir() -> Path | None:
+    """~/.cache/gnppdsl/ast, private to the user (0700), or None (GNPP_NO_CACHE, not ours)."""
     import os
+
+    from gnppdsl.outputs import private_dir
 
     if os.environ.get("GNPP_NO_CACHE"):
         return None
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    d = Path(base) / "gnppdsl" / "ast"
-    try:
-        d.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return None
-    return d
+    root = private_dir(Path(base) / "gnppdsl")
+    return private_dir(root / "ast") if root is not None else None
 
 
 @lru_cache(maxsize=1)
 def _grammar_signature() -> str:
     import hashlib
 
+    from gnppdsl.lang import ast_json, span
     from gnppdsl.resources import grammar_dir
 
     h = hashlib.sha1(_CACHE_VERSION.encode())
     h.update((grammar_dir() / "pntc.lark").read_bytes())
-    h.update(Path(__file__).read_bytes())
-    h.update(Path(ast.__file__).read_bytes())
-    from gnppdsl.lang import span
-
-    h.update(Path(span.__file__).read_bytes())          # Span lives there
+    for module in (__file__, ast.__file__, span.__file__, ast_json.__file__):   # Span lives in span
+        h.update(Path(module).read_bytes())
     return h.hexdigest()
 
 
@@ -616,36 +679,31 @@ def _cache_key(text: str, path: str) -> str:
 
 
 def _cache_load(key: str) -> ast.FileAst | None:
+    """A cached tree, or None. JSON only (`ast_json`): a planted file can at worst be a miss."""
     d = _cache_dir()
     if d is None:
         return None
-    import pickle
+    from gnppdsl.inputs import InputError, decode_utf8, read_bytes
+    from gnppdsl.lang import ast_json
 
     try:
-        with open(d / f"{key}.pickle", "rb") as fh:
-            result = pickle.load(fh)
-    except Exception:  # noqa: BLE001 - a missing or stale cache entry is just a miss
+        return ast_json.loads(decode_utf8(read_bytes(d / f"{key}.json")))
+    except (InputError, ValueError, TypeError, RecursionError):
         return None
-    return result if isinstance(result, ast.FileAst) else None
 
 
 def _cache_store(key: str, tree: ast.FileAst) -> None:
     d = _cache_dir()
     if d is None:
         return
-    import os
-    import pickle
+    from gnppdsl.errors import UserError
+    from gnppdsl.lang import ast_json
+    from gnppdsl.outputs import write_atomic
 
-    tmp = d / f"{key}.{os.getpid()}.tmp"
     try:
-        with open(tmp, "wb") as fh:
-            pickle.dump(tree, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, d / f"{key}.pickle")
-    except Exception:  # noqa: BLE001 - caching is an optimisation only
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
+        write_atomic(d / f"{key}.json", ast_json.dumps(tree), "parse cache", mode=0o600)
+    except (UserError, ValueError, RecursionError):   # caching is an optimisation only
+        pass
 
 
 def parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
@@ -668,9 +726,7 @@ def _report_layout(file_ast: ast.FileAst, text: str, reporter: Reporter) -> None
     from gnppdsl.lang.lint import layout_warnings
 
     for span, message, hint in layout_warnings(file_ast, text):
-        d = Diagnostic(message, span, "layout", hint, severity="warning")
-        if d not in reporter.diagnostics:
-            reporter.diagnostics.append(d)
+        reporter.add(Diagnostic(message, span, "layout", hint, severity="warning"))
 
 
 def _parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
@@ -697,20 +753,34 @@ def _parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
             continue
         if errors:
             return None
-        header, items = _make_transformer(path).transform(tree)
+        deep = _too_deep(tree)
+        if deep is not None:
+            reporter.error(_node_span(deep, path), f"nested more than {MAX_NESTING} levels deep",
+                           "nesting", "brackets, parentheses, prefix operators and chained "
+                           "operators each add a level; split the expression (a `const`, a template)")
+            return None
+        problems: list = []
+        from lark.exceptions import VisitError
+
+        try:
+            header, items = _make_transformer(path, problems).transform(tree)
+        except VisitError as exc:          # a value no check above foresaw: still located
+            reporter.error(_node_span(exc.obj, path), f"cannot read this {exc.rule}: {exc.orig_exc}",
+                           "syntax")
+            return None
+        for span, message, hint in problems:
+            reporter.error(span, message, "syntax", hint)
+        if problems:
+            return None
         result = ast.FileAst(path, header, items)
         return result
 
 
-def parse_file(path: str | Path, reporter: Reporter) -> ast.FileAst | None:
-    """Read and parse a file; unreadable files and syntax errors are reported, not raised."""
+def parse_file(path: str | Path, reporter: Reporter, ref: Span | None = None) -> ast.FileAst | None:
+    """Read and parse a file; unreadable files and syntax errors are reported, not raised.
+    `ref` is where the file is named (a `use` line), the place to report a file not read."""
+    from gnppdsl.lang.diagnostics import read_source
+
     p = str(path)
-    try:
-        text = Path(p).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        reporter.error(None, f"file not found: {p}", "missing-file")
-        return None
-    except (OSError, UnicodeDecodeError) as exc:
-        reporter.error(None, f"cannot read {p}: {exc}", "unreadable-file")
-        return None
-    return parse_text(text, p, reporter)
+    text = read_source(reporter, p, ref)
+    return parse_text(text, p, reporter) if text is not None else None

@@ -188,10 +188,12 @@ def parse_conflicts(text: str, task: SASTask, path: str = "<conflicts>") -> list
 
 def read_conflicts(path: str | Path, task: SASTask) -> list[Conflict]:
     """Read a conflict file; a missing file is a UserError too."""
+    from gnppdsl.inputs import InputError, read_text
+
     try:
-        text = Path(path).read_text()
-    except OSError as exc:
-        raise UserError(f"{path}: cannot read conflict file: {exc.strerror or exc}") from None
+        text = read_text(path)
+    except InputError as exc:
+        raise UserError(f"{path}: cannot read conflict file: {exc.message}") from None
     return parse_conflicts(text, task, str(path))
 
 

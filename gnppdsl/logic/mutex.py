@@ -23,17 +23,24 @@ import numpy as np
 from gnppdsl.compile.sas import Fact, SASTask
 
 
-def _derived_consequences(task: SASTask, facts) -> tuple[set[Fact], set[Fact]]:
+def _axioms_by_var(task: SASTask) -> dict[int, list]:
+    axioms: dict[int, list] = {}
+    for ax in task.axioms:
+        axioms.setdefault(ax.var, []).append(ax)
+    return axioms
+
+
+def _derived_consequences(task: SASTask, facts, axioms: dict[int, list] | None = None) -> tuple[set[Fact], set[Fact]]:
     """State facts that a conjunction with derived tests implies true / implies false.
 
     Only the certain cases: `d = 1` with a single axiom implies its conditions; `d = 0` implies
     that each single-condition axiom's condition is false (recursively through derived
     conditions). E.g. `clear(x)` (:= not exists o . parent(o) = x) excludes every
     `parent(o) = x`, which lets h^2 see that two blocks never rest on one support.
+    `axioms`: `_axioms_by_var(task)`, built once by callers that ask for many operators.
     """
-    axioms: dict[int, list] = {}
-    for ax in task.axioms:
-        axioms.setdefault(ax.var, []).append(ax)
+    if axioms is None:
+        axioms = _axioms_by_var(task)
     implied: set[Fact] = set()
     excluded: set[Fact] = set()
     seen: set[Fact] = set()
@@ -63,13 +70,8 @@ def _derived_consequences(task: SASTask, facts) -> tuple[set[Fact], set[Fact]]:
     return implied, excluded
 
 
-def h2_reachable(task: SASTask) -> tuple[set[Fact], set[tuple[Fact, Fact]]]:
-    """Facts and (ordered) pairs of facts of state variables that h^2 considers reachable.
-
-    A boolean matrix R over state facts (R[f, f]: f reachable) grows until a fixpoint; for each
-    applicable operator o the facts it may produce pair with each other and with the facts that
-    can survive o (vectorised over all facts).
-    """
+def _h2_matrix(task: SASTask):
+    """(facts in index order, variable of each fact, the fixpoint matrix R) of h^2 (below)."""
     state = [i for i, v in enumerate(task.variables) if not v.is_derived]
     index: dict[Fact, int] = {}
     var_of: list[int] = []
@@ -83,8 +85,13 @@ def h2_reachable(task: SASTask) -> tuple[set[Fact], set[tuple[Fact, Fact]]]:
     init = [index[(v, task.initial[v])] for v in state]
     R[np.ix_(init, init)] = True
     ops = []
+    by_var = _axioms_by_var(task)
+    consequences: dict[tuple, tuple[set[Fact], set[Fact]]] = {}   # operators share derived tests
     for op in task.operators:
-        implied, excluded = _derived_consequences(task, op.pre)
+        key = tuple(sorted(f for f in op.pre if task.variables[f[0]].is_derived))
+        if key not in consequences:
+            consequences[key] = _derived_consequences(task, key, by_var)
+        implied, excluded = consequences[key]
         pre = sorted(set((v, x) for v, x in op.pre if not task.variables[v].is_derived) | implied)
         if len({v for v, _ in pre}) != len(pre) or set(pre) & excluded:
             continue                                        # contradictory: never applicable
@@ -112,19 +119,31 @@ def h2_reachable(task: SASTask) -> tuple[set[Fact], set[tuple[Fact, Fact]]]:
             R[:, E] |= keep[:, None]
             if len(E) and R[E].sum() != before:
                 changed = True
-    facts = {f for f, i in index.items() if R[i, i]}
-    inv = list(index)
-    rows, cols = np.nonzero(R)
-    pairs = {(inv[i], inv[j]) for i, j in zip(rows.tolist(), cols.tolist()) if var_of[i] != var_of[j]}
-    return facts, pairs
+    return list(index), var_arr, R
+
+
+def h2_reachable(task: SASTask) -> tuple[set[Fact], set[tuple[Fact, Fact]]]:
+    """Facts and (ordered) pairs of facts of state variables that h^2 considers reachable.
+
+    A boolean matrix R over state facts (R[f, f]: f reachable) grows until a fixpoint; for each
+    applicable operator o the facts it may produce pair with each other and with the facts that
+    can survive o (vectorised over all facts).
+    """
+    inv, var_arr, R = _h2_matrix(task)
+    facts = {inv[i] for i in np.flatnonzero(R.diagonal()).tolist()}
+    rows, cols = np.nonzero(R & (var_arr[:, None] != var_arr[None, :]))
+    return facts, {(inv[i], inv[j]) for i, j in zip(rows.tolist(), cols.tolist())}
 
 
 def mutexes(task: SASTask) -> tuple[list[Fact], list[tuple[Fact, Fact]]]:
-    """(unreachable facts, mutex pairs (f, g) with var(f) < var(g)) of the state variables."""
-    rf, rp = h2_reachable(task)
-    state = [i for i, v in enumerate(task.variables) if not v.is_derived]
-    unreachable = [(v, x) for v in state for x in range(len(task.variables[v].values)) if (v, x) not in rf]
-    reach = sorted(rf)
-    pairs = [(f, g) for i, f in enumerate(reach) for g in reach[i + 1:]
-             if f[0] < g[0] and (f, g) not in rp]
-    return unreachable, pairs
+    """(unreachable facts, mutex pairs (f, g) with var(f) < var(g)) of the state variables.
+
+    Read off the h^2 matrix with numpy (the facts are indexed in (variable, value) order, so
+    row-major order is the sorted order): building the set of reachable pairs first took 0.5 s
+    of the 2.3 s on 32 blocks in pairs (1.5 million pairs)."""
+    inv, var_arr, R = _h2_matrix(task)
+    diag = R.diagonal()
+    unreachable = [inv[i] for i in np.flatnonzero(~diag).tolist()]
+    mask = ~R & diag[:, None] & diag[None, :] & (var_arr[:, None] < var_arr[None, :])
+    rows, cols = np.nonzero(mask)
+    return unreachable, [(inv[i], inv[j]) for i, j in zip(rows.tolist(), cols.tolist())]

@@ -23,6 +23,7 @@ from typing import Iterable, Sequence
 import clingo
 
 from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl import interrupt
 from gnppdsl.errors import SolveFailure
 from gnppdsl.logic.encoding import conflict_program, encode_task
 from gnppdsl.logic.validate import State, find_sequence, plan_cost
@@ -256,13 +257,13 @@ class IncrementalPlanner:
         self._ctl.configuration.solve.models = 0 if optimising else models
         t0 = time.perf_counter()
         try:
-            with self._ctl.solve(on_model=on_model, async_=True) as handle:
+            with interrupt.native(), self._ctl.solve(on_model=on_model, async_=True) as handle:
                 while True:
                     wait = 0.05 if deadline is None else max(0.0, min(0.05, deadline - time.perf_counter()))
                     if handle.wait(wait):
                         break
-                    if deadline is not None and time.perf_counter() >= deadline:
-                        handle.cancel()
+                    if deadline is not None and time.perf_counter() >= deadline or interrupt.pending():
+                        handle.cancel()       # a signal too (`gnppdsl.interrupt`): raised below
                         break
                 result = handle.get()
         finally:

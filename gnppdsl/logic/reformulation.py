@@ -94,3 +94,42 @@ def forbid_sequences(task: SASTask, seqs: Iterable[Sequence[PartialState]]) -> S
     for seq in seqs:
         task = forbid_sequence(task, seq)       # fresh variable names per conflict
     return task
+
+
+def forbid_plan(task: SASTask, ops: Sequence[int], prefix: str | None = None) -> SASTask:
+    """A new task whose plans are those of `task` except exactly the operator sequence `ops`.
+
+    Why: a blocked plan (the One-way baseline, or a plan the loop gives up without a conflict)
+    forbids one operator sequence, not a sequence of partial states, so Appendix B does not
+    express it; Fast Downward needs it inside the task. A state variable m in {0 .. n, off}
+    follows how much of `ops` = <a_1 .. a_n> the plan has executed: operator o sets m := i + 1
+    where m = i and o = a_{i+1}, and m := off otherwise (one conditional effect per value).
+    A derived variable (axiom: m = n) must be false in the goal, so a plan is forbidden iff it
+    is exactly `ops`; a longer plan starting with `ops` moves m to off and stays allowed.
+    """
+    ops = tuple(ops)
+    if any(not 0 <= o < len(task.operators) for o in ops):
+        raise ValueError(f"plan refers to unknown operators: {ops}")
+    prefix = prefix or _fresh_prefix(task)
+    n = len(ops)
+    m, done = len(task.variables), len(task.variables) + 1
+    off = n + 1
+    variables = list(task.variables)
+    variables.append(SASVariable(f"{prefix}_m", tuple(str(i) for i in range(n + 1)) + ("off",)))
+    variables.append(SASVariable(f"{prefix}_done", BOOL, axiom_layer=0))
+    operators = []
+    for o, op in enumerate(task.operators):
+        extra = []
+        for i in range(n + 1):
+            nxt = i + 1 if i < n and ops[i] == o else off
+            extra.append(Effect(m, nxt, ((m, i),)))
+        operators.append(replace(op, effects=tuple(op.effects) + tuple(extra)))
+    return SASTask(
+        variables=variables,
+        initial=tuple(task.initial) + (0, 0),
+        goal=task.goal.union(PartialState(((done, 0),))),
+        operators=operators,
+        axioms=list(task.axioms) + [Axiom(((m, n),), done, 1)],
+        pair_costs=dict(task.pair_costs),
+        name=task.name,
+    )

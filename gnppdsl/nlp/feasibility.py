@@ -36,6 +36,7 @@ from typing import Mapping, NamedTuple
 import casadi as ca
 import numpy as np
 
+from gnppdsl import interrupt
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.errors import UserError
 from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody, scatter_sum
@@ -708,13 +709,14 @@ class FeasibilitySolver:
         p = np.concatenate([x0, a.params, [rho]])
         if a.monitor is not None:
             a.monitor.reset(0.1 * self.options.tolerance, self.options.stall_iterations, self.deadline)
-        if solver is not None:
-            sol = solver(x0=warm.z, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=a.lbx, ubx=a.ubx,
-                         lbg=a.lbg, ubg=a.ubg)
-        else:
-            solver = a.solver
-            z0 = np.nan_to_num(elastic_point(a, x0), nan=1.0, posinf=1e3, neginf=-1e3)
-            sol = solver(x0=z0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
+        with interrupt.native():         # a signal stops the run (_Monitor), raised after it
+            if solver is not None:
+                sol = solver(x0=warm.z, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=a.lbx, ubx=a.ubx,
+                             lbg=a.lbg, ubg=a.ubg)
+            else:
+                solver = a.solver
+                z0 = np.nan_to_num(elastic_point(a, x0), nan=1.0, posinf=1e3, neginf=-1e3)
+                sol = solver(x0=z0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
         st = solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
@@ -806,6 +808,7 @@ class FeasibilitySolver:
             if worst <= best[2]:
                 best = (values, per, worst, slack, status, x, lam)
         values, per, worst, slack, status, _, lam = best
+        _raise_on_nan(graph, per)
         dt = time.perf_counter() - t0
         self.solve_time += dt
         duals = self._duals(a, lam) if worst > tol else None
@@ -814,6 +817,25 @@ class FeasibilitySolver:
             if duals is not None else {}
         return FeasibilityResult(worst <= tol, values, per, worst, slack, dt, iters, status,
                                  starts, activity, duals)
+
+
+def _raise_on_nan(graph: GraphNLP, per: Mapping[FactorRef, float]) -> None:
+    """`NumericalFault` naming the factors whose rows are NaN or infinite at the best point
+    (`_verdict` maps NaN to inf). Why: the elastic NLP cannot satisfy a NaN row, so without
+    this the plan was refuted, a conflict learnt and the run ended in "no plan" with only
+    casadi's warnings on stderr; an undefined value is a fault of the model, not a verdict."""
+    bad = [r for r, v in per.items() if not math.isfinite(v)]
+    if not bad:
+        return
+    from gnppdsl.errors import NumericalFault
+
+    names = [graph.factors[r.index].label for r in bad[:3]]
+    more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+    templates = sorted({graph.factors[r.index].template for r in bad})
+    raise NumericalFault(
+        f"solver fault: factor {', '.join(names)}{more} evaluates to NaN or infinity where the solver stopped; "
+        f"check template {', '.join(templates)} for a square root or a log of a "
+        f"negative number, a division by zero or an overflow")
 
 
 def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarray] | None = None,

@@ -76,8 +76,8 @@ class IterationMonitor(ca.Callback):
         worst = max(np.max(r_in, initial=0.0), np.max(r_eq, initial=0.0),
                     np.max(r_q, initial=0.0))
         total = float(r_in.sum() + r_eq.sum() + r_q.sum())   # what the elastic form minimises
-        if time.perf_counter() >= self.deadline:
-            self.timed_out = True
+        if time.perf_counter() >= self.deadline or interrupt.pending():
+            self.timed_out = True        # a signal too (`gnppdsl.interrupt`): stop this run now
             return [1]
         if not np.isfinite(total):
             return [0]

@@ -72,16 +72,21 @@ class Compiled:
 def load_and_compile(paths: Sequence[str] | str) -> Compiled:
     """Load a problem (its domain found next to it, or given first), compile task and factory."""
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
-    for p in paths:
-        if not Path(p).is_file():
-            raise UserError(f"{p}: no such file")
+    from gnppdsl.inputs import SOURCE_SUFFIXES, InputError, check_suffix, read_text
+
+    for p in paths:                 # regular .pntc files of bounded size (`gnppdsl.inputs`)
+        try:
+            check_suffix(p, SOURCE_SUFFIXES, "problem or domain")
+            read_text(p)
+        except InputError as exc:
+            raise UserError(f"{p}: {exc.message}") from None
     if len(paths) > 2:
         raise UserError("give a problem file, optionally preceded by its domain file")
     from gnppdsl.ir import load_problem
 
     if len(paths) == 2:
         # either order: the problem is the file that declares `problem NAME for DOMAIN`
-        first_is_problem = _PROBLEM_HEADER.search(Path(paths[0]).read_text(errors="replace")) is not None
+        first_is_problem = _PROBLEM_HEADER.search(read_text(paths[0])) is not None
         prob_path, dom_path = (paths[0], paths[1]) if first_is_problem else (paths[1], paths[0])
         problem = load_problem(prob_path, dom_path)
     else:

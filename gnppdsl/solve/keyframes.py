@@ -13,42 +13,29 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from gnppdsl.compile.factors import FactorInstance
-from gnppdsl.compile.sas import PartialState
-from gnppdsl.ir.expr import CVar, Constraint, Num
+from gnppdsl.ir.expr import CVar
 
 
 def world_states(compiled: Any, states: Sequence[Sequence[int]], values: dict) -> list[dict[str, Any]]:
     """[{entity: world pose or joint coordinates}] for s_0 .. s_n."""
-    from gnppdsl.nlp.evaluate import constraint_rows
+    from gnppdsl.solve.timing import world_poses
 
-    factory = compiled.factory
     problem = compiled.problem
     scene = problem.scene
     by_key_step = {(v.key, v.step): v for v in values}
+
+    def value_of(key: str, step: int):
+        v = by_key_step.get((key, step))
+        return None if v is None else values[v]
+
     out: list[dict[str, Any]] = []
     for i in range(len(states)):
-        st: dict[str, Any] = {}
-        for obj in problem.objects:
-            if scene is None or scene.entity(obj) is None:
-                continue
-            frame = problem.domain.frame_of(problem.objects[obj])
-            if obj in scene.robots and scene.robots[obj].kind == "urdf":
-                q = _robot_coords(frame, obj, i, by_key_step, values)
+        st: dict[str, Any] = dict(world_poses(compiled, states, i, value_of))
+        for robot, spec in (scene.robots.items() if scene is not None else ()):
+            if spec.kind == "urdf" and robot in problem.objects:
+                q = _robot_coords(problem.domain.frame_of(problem.objects[robot]), robot, i, by_key_step, values)
                 if q is not None:
-                    st[obj] = q
-                continue
-            if frame is None:
-                continue                      # fixed at its scene pose
-            try:
-                expr, variables = factory.world_pose_expr(obj, states, i)
-            except Exception:                 # noqa: BLE001 - a pose we cannot expand is not drawn
-                continue
-            if any(v not in values for v in variables):
-                continue
-            probe = FactorInstance("render.world", "render", (), frozenset(), i, 1, (PartialState(),),
-                                   variables, (Constraint(expr, "==", Num(0.0)),))
-            st[obj] = np.array([h for _, h in constraint_rows(probe, values, compiled.geometry)])
+                    st[robot] = q
         out.append(st)
     return out
 
@@ -70,11 +57,42 @@ def _robot_coords(frame: Any, robot: str, step: int, by_key_step: dict, values: 
     return None
 
 
-def render_solution(compiled: Any, result: Any, out_dir: str) -> list[str]:
-    """Render the keyframes s_0 .. s_n of a solved result as PNG files; returns their paths."""
-    from gnppdsl.geometry.render import render_keyframes
+def render_solution(compiled: Any, result: Any, out_dir: str, gif: bool = True) -> list[str]:
+    """Render the keyframes s_0 .. s_n of a solved result as PNG files (each with the motion
+    that led to it: waypoints of the trajectories, or the interpolated keyframe motion of
+    planar domains) and, with `gif`, the whole plan as `plan.gif`; returns the paths."""
+    from gnppdsl.geometry.render import render_animation, render_keyframes
+    from gnppdsl.solve.timing import motion_samples, world_poses
 
     plan = result.extras["plan"]
+    problem = compiled.problem
     states = world_states(compiled, plan.states, result.extras["values"])
+    data = result.to_json()
+    by = {(k, i): np.asarray(v, float) for i, st in enumerate(data["steps"]) for k, v in st["values"].items()}
+    urdf = {info["configuration"]: r for r, info in data.get("robots", {}).items()
+            if "configuration" in info and problem.scene.robots.get(r) is not None
+            and problem.scene.robots[r].kind == "urdf"}
+    motions: list[list[dict[str, Any]]] = [[] for _ in states]
+    frames, durations, frame_titles = [], [], []
+    samples = motion_samples(data["steps"], data.get("robots", {}))
     titles = [f"s{st.index}" + (f" <- {st.action}" if st.action else " (initial)") for st in result.steps]
-    return render_keyframes(compiled.problem.scene, compiled.geometry, states, out_dir, titles=titles)
+    for k, (t, i, over) in enumerate(samples):
+        if not over:
+            st = states[i]
+        else:
+            def value_of(key: str, step: int, i=i, over=over):
+                return over[key] if step == i and key in over else by.get((key, step))
+            st = dict(world_poses(compiled, plan.states, i, value_of))
+            st.update({r: value_of(key, i) for key, r in urdf.items() if value_of(key, i) is not None})
+            motions[i + 1].append(st)
+        frames.append(st)
+        durations.append((samples[k + 1][0] - t) if k + 1 < len(samples) else 1.0)
+        frame_titles.append(titles[min(i + (1 if over else 0), len(titles) - 1)] + f"   t = {t:.2f} s")
+    entities = frozenset(problem.objects)
+    paths = render_keyframes(problem.scene, compiled.geometry, states, out_dir, titles=titles,
+                             entities=entities, motions=motions)
+    if gif:
+        import os
+        paths.append(render_animation(problem.scene, compiled.geometry, frames, os.path.join(out_dir, "plan.gif"),
+                                      durations=durations, titles=frame_titles, entities=entities))
+    return paths

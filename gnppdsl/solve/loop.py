@@ -30,14 +30,16 @@ from typing import Any, Sequence
 from gnppdsl.compile.sas import PartialState
 from gnppdsl.ir.model import Problem
 from gnppdsl.solve.compiled import Compiled, compile_problem, load_and_compile
+from gnppdsl import interrupt
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.options import Progress, SolveOptions
-from gnppdsl.solve.plan_evaluation import PlanEvaluation
-from gnppdsl.solve.result import TIME_LIMIT, Conflict, Result
+from gnppdsl.solve.coverage import Coverage
+from gnppdsl.solve.result import INTERRUPTED, TIME_LIMIT, Conflict, Result
+from gnppdsl.solve.timing import annotate_motion
 
 
-class Loop(PlanEvaluation):
+class Loop(Coverage):
     """The loops of one solve: GNPP (Fig. 3; R-LGP when `algorithm` is rlgp, with the travel
     costs of `rlgp`) and One-way (Sec. VIII-C)."""
 
@@ -49,6 +51,9 @@ class Loop(PlanEvaluation):
         except TimeUp:
             return self.result(TIME_LIMIT, f"time limit of {self.options.time_limit:g} s reached "
                                            f"after {self.stats.plans} plans")
+        except interrupt.Interrupted as stop:          # SIGINT / SIGTERM / the run's alarm
+            return self.result(TIME_LIMIT if stop.reason == "time_limit" else INTERRUPTED,
+                               f"{stop.describe()} after {self.stats.plans} plans")
 
     def gnpp(self) -> Result:
         while True:
@@ -68,6 +73,10 @@ class Loop(PlanEvaluation):
                     self.add_conflict(plan, known, "database", "")
                     continue
             outcome = self.evaluate(graph, use_db=self.db is not None)
+            if outcome[0] == "solution":           # verified; near pairs join (the active set)
+                outcome = self.cover(plan, graph, outcome[1])
+            if outcome[0] == "result":
+                return outcome[1]
             if outcome[0] == "conflict":
                 if not self.confirm_sweeping(outcome[1]):
                     self.say("  plan blocked: a conflict without facts (it would forbid every plan) "
@@ -80,8 +89,6 @@ class Loop(PlanEvaluation):
                     continue
                 self.add_conflict(plan, outcome[1], "nlp", outcome[2])
                 continue
-            if outcome[0] == "solution":
-                return self.solution(plan, graph, outcome[1])
             # the solver contradicted itself (infeasible as a whole, every component feasible):
             # no sound conflict, so only this plan is given up
             self.say(f"  plan blocked: {outcome[1]}")
@@ -103,7 +110,9 @@ class Loop(PlanEvaluation):
             graph = self.build_graph(plan.states)
             r = FeasibilityCheck(self, self.new_solver(), graph, use_db=False).solve(graph)
             if r.feasible:
-                return self.solution(plan, graph, r.values)
+                outcome = self.cover(plan, graph, r.values)
+                if outcome[0] == "result":
+                    return outcome[1]             # else: blocked with the pairs it brings near
             self.stats.conflicts += 1
             self.conflicts.append(Conflict(tuple(PartialState.of(enumerate(s)) for s in plan.states),
                                            "blocked plan: " + "; ".join(plan.names), (), "plan", "",
@@ -114,7 +123,9 @@ def solve_compiled(compiled: Compiled, options: SolveOptions | None = None,
                    progress: Progress | None = None) -> Result:
     """Solve an already compiled problem (a fresh planner, solver caches and database per call)."""
     options = (options or SolveOptions.from_settings(getattr(compiled.problem, "settings", None))).validated()
-    return Loop(compiled, options, progress).solve()
+    result = Loop(compiled, options, progress).solve()
+    annotate_motion(result, compiled)      # joint names, time stamps, world poses (timing.py)
+    return result
 
 
 def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, options: SolveOptions | None = None,

@@ -11,10 +11,11 @@ from typing import Any, Callable, Iterator
 
 from gnppdsl.errors import UserError
 from gnppdsl.ir.model import SOLVER_ORDERS as ORDERS
+from gnppdsl.ir.model import SOLVER_PLANNERS as PLANNERS
 from gnppdsl.ir.model import SolverSettings
 
 
-Progress = Callable[[str], None]
+Progress = Callable[[str], None]   # may also have `watch(stats)`: given the solve's live Stats once
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,7 @@ class SolveOptions:
                                      # compiled now, False: never (`jit.mode`)
     distance_curvature: bool = True  # ipopt's Hessian includes the curvature of signed-distance rows
                                      # (`SolverOptions.distance_curvature`)
+    planner: str = "auto"            # logic mode (`gnppdsl.logic.modes`): auto | sequential | fd
     lazy_search: bool = True         # gnpp: Alg. 1's search solves each small subgraph from one
                                      # start, only the conflict gets the restarts (`FeasibilityCheck.confirm`);
                                      # on since session 9 (with held objects' initial guesses): lab5
@@ -63,6 +65,10 @@ class SolveOptions:
                                      # point when it certifies it (no NLP), and confirms it with
                                      # the graph's restarts (`FeasibilityCheck.certify`); planar p5
                                      # 5 -> 3 NLPs, p4 10 -> 6
+    active_set: bool = True          # a solution the independent verification rejects gets the
+                                     # pairs it found near as factors and is solved again
+                                     # (`gnppdsl.solve.coverage`); False: it ends the solve as
+                                     # verification_failed (every solution is verified either way)
 
     @staticmethod
     def from_settings(settings: SolverSettings | None = None, **overrides: Any) -> "SolveOptions":
@@ -70,7 +76,8 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "optimise"):
+                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "planner",
+                         "optimise"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -86,6 +93,19 @@ class SolveOptions:
             raise UserError("a subgraph database (--db) needs the gnpp algorithm")
         if self.time_limit <= 0:
             raise UserError("the time limit must be positive")
+        from gnppdsl.ir.model import setting_problem
+
+        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+            value = getattr(self, key, None)        # the ranges of the `solver { }` block
+            problem = setting_problem(key, value) if value is not None else None
+            if problem is not None:
+                raise UserError(f"{key} {value} {problem}")
+        if self.planner not in PLANNERS:
+            raise UserError(f"planner '{self.planner}' is not available (use {', '.join(PLANNERS)})")
+        if self.planner == "fd" and self.algorithm != "gnpp":
+            raise UserError(f"planner fd cannot serve algorithm {self.algorithm}: "
+                            + ("One-way enumerates plans in order of length" if self.algorithm == "oneway"
+                               else "R-LGP minimises travel costs") + " (use planner sequential or auto)")
         if self.order not in ORDERS:
             raise UserError(f"order '{self.order}' is not available (use {', '.join(ORDERS[:-1])} "
                             f"or {ORDERS[-1]})")

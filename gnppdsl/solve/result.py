@@ -20,7 +20,12 @@ SOLVED = "solved"
 NO_PLAN = "no_plan"                 # the logic planner proved no (further) plan exists up to the horizon
 TIME_LIMIT = "time_limit"
 SOLVER_FAILURE = "solver_failure"   # a plan's graph-NLP was feasible in every check but the full solve failed
-STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE)
+UNVERIFIED = "verification_failed"  # the solver's solution failed the independent verification and was not repaired
+INTERRUPTED = "interrupted"         # SIGINT / SIGTERM (`gnppdsl.interrupt`): the partial result
+#: largest violation a "solved" result may have at the independent re-check (`Result.checked`),
+#: whatever tolerance was asked for: the tolerance option is capped at 1e-2 too
+SANE_VIOLATION = 1e-2
+STATUSES = (SOLVED, NO_PLAN, TIME_LIMIT, SOLVER_FAILURE, UNVERIFIED, INTERRUPTED)
 
 
 def algorithm_title(algorithm: str, switches: str | None) -> str:
@@ -69,6 +74,11 @@ class Step:
     state: str                                # s_i in DSL syntax
     values: dict[str, list[float]] = field(default_factory=dict)          # key -> x_i^k
     trajectories: dict[str, list[list[float]]] = field(default_factory=dict)  # key -> waypoints
+    # filled by gnppdsl.solve.timing.annotate_motion: seconds from the start at s_i, the time of
+    # each waypoint of the trajectories to s_{i+1}, world poses of the movable entities at s_i
+    time: float | None = None
+    trajectory_times: dict[str, list[float]] = field(default_factory=dict)
+    world: dict[str, list[float]] = field(default_factory=dict)
 
 
 @dataclass
@@ -77,6 +87,7 @@ class Stats:
     ipopt_runs: int = 0               # solver runs behind them (multi-starts, polish re-solves)
     nlp_time: float = 0.0             # seconds inside the NLP solver
     logic_time: float = 0.0           # seconds in the logic planner (incl. adding conflicts)
+    logic_cpu: float = 0.0            # CPU seconds of the same (Fast Downward's child processes included)
     factory_time: float = 0.0         # seconds building graph-NLPs
     reach_time: float = 0.0           # seconds building / querying reachability graphs (rlgp)
     total_time: float = 0.0           # wall clock
@@ -99,6 +110,8 @@ class Stats:
     kernels_queued: int = 0           # kernels handed to background compile workers (later solves load them)
     kernel_error: str = ""            # the last such error
     N0: int | None = None             # length of the first logical plan
+    N0_shortest: bool | None = None   # the logic mode proved that first plan shortest (N0 exact)
+    first_plan_time: float | None = None   # seconds from the start to the first logical plan
     N: int | None = None              # length of the returned solution
     max_violation: float | None = None   # independent re-check of every factor at the solution
     cost: float | None = None         # the objective (`minimize` terms) at the returned solution
@@ -123,6 +136,13 @@ class Result:
     conflicts: list[Conflict] = field(default_factory=list)
     stats: Stats = field(default_factory=Stats)
     time_limit: float | None = None
+    # filled by gnppdsl.solve.timing.annotate_motion (docs/result.schema.json)
+    inputs: dict[str, str] = field(default_factory=dict)            # "problem", "domain": file paths
+    coordinates: dict[str, list[str]] = field(default_factory=dict)  # variable key -> component names
+    robots: dict[str, dict[str, Any]] = field(default_factory=dict)  # robot -> joints, configuration / trajectory keys
+    # the independent verification (`gnppdsl.solve.verify_solution`): {ok, failures: [{kind,
+    # step, waypoint, bodies, distance, message}], keyframes, waypoints, midpoints, min_distance}
+    verification: dict[str, Any] | None = None
     # robot -> {"base": metres driven (None: fixed base), "end_effector": metres}
     path_length: dict[str, dict[str, float | None]] = field(default_factory=dict)
     # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
@@ -131,6 +151,18 @@ class Result:
     @property
     def solved(self) -> bool:
         return self.status == SOLVED
+
+    def checked(self, bound: float = SANE_VIOLATION) -> "Result":
+        """This result, or a copy with status solver_failure when it claims "solved" but its
+        independent re-check (`stats.max_violation`) exceeds `bound` or is not a number."""
+        v = self.stats.max_violation
+        if not self.solved or v is None or (math.isfinite(v) and v <= bound):
+            return self
+        from dataclasses import replace
+
+        return replace(self, status=SOLVER_FAILURE,
+                       message=f"the solution's constraint violation {v:.3g} exceeds {bound:g} at the "
+                               f"independent re-check; not reported as solved")
 
     @property
     def algorithm_name(self) -> str:
@@ -149,20 +181,24 @@ class Result:
             "solved": self.solved,
             "message": self.message,
             "time_limit": self.time_limit,
+            "inputs": dict(self.inputs),
             "plan": list(self.plan),
+            "coordinates": dict(self.coordinates),
+            "robots": dict(self.robots),
             "steps": [asdict(s) for s in self.steps],
             "conflicts": [c.to_json() for c in self.conflicts],
             "cost": _finite({"cost": self.stats.cost})["cost"],
             "path_length": _finite(self.path_length),
             "stats": _finite(asdict(self.stats)),
+            "verification": self.verification,
         }
 
-    def write_json(self, path: str | Path) -> None:
-        """Write atomically (temp file + rename) so a reader never sees half a file."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_json(), indent=2) + "\n")
-        tmp.replace(path)
+    def write_json(self, path: str | Path, what: str = "--json") -> None:
+        """Write atomically and never through a symbolic link (`gnppdsl.outputs`), so a
+        reader never sees half a file; errors name the option (`what`)."""
+        from gnppdsl.outputs import write_atomic
+
+        write_atomic(path, json.dumps(self.to_json(), indent=2) + "\n", what)
 
     def summary(self, max_conflicts: int = 20) -> str:
         s = self.stats
@@ -177,7 +213,9 @@ class Result:
                 lines.append(head)
                 lines.append(f"      {st.state}")
                 for key, val in st.values.items():
-                    lines.append(f"      {key} = [{', '.join(f'{x:.4g}' for x in val)}]")
+                    lines.append(f"      {key} = [{', '.join(_num(x) for x in val)}]")
+                for name, pose in st.world.items():
+                    lines.append(f"      world {name} = [{', '.join(_num(x) for x in pose)}]")
                 for key, pts in st.trajectories.items():
                     lines.append(f"      {key}: {len(pts)} waypoints to s{st.index + 1}")
         if self.conflicts:
@@ -191,7 +229,7 @@ class Result:
             f"stats: NLPs {s.nlp_solves} ({s.ipopt_runs} solver runs, {s.nlp_time:.2f} s), logic {s.logic_time:.2f} s, "
             f"factory {s.factory_time:.2f} s, " + (f"reachability {s.reach_time:.2f} s, " if s.reach_time else "")
             + f"plans {s.plans}, conflicts {s.conflicts}, "
-            f"N0 {_opt(s.N0)}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
+            f"N0 {_opt(s.N0)}{'' if s.N0_shortest is not False else ' (not proven shortest)'}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
         )
         if s.kernels_failed:
             lines.append(f"jit: {s.kernels_failed} kernels not compiled, run by casadi's virtual machine "
@@ -205,6 +243,12 @@ class Result:
         if s.db_feasible_hits or s.db_infeasible_hits:
             lines.append(f"database: {s.db_feasible_hits} feasible and {s.db_infeasible_hits} "
                          f"infeasible hits (NLPs skipped)")
+        v = self.verification
+        if v is not None:
+            lines.append(f"independent verification (pinocchio + coal): {'OK' if v['ok'] else 'FAILED'}, "
+                         f"{v['keyframes']} keyframes, {v['waypoints']} waypoints, {v['midpoints']} midpoints"
+                         + ("" if v["min_distance"] is None else f", min distance {v['min_distance']:+.4f}"))
+            lines += [f"  {f['message']}" for f in v["failures"][:10]]
         if s.cost is not None:
             how = ("optimised" if s.optimised else "not improved") + f" in {s.optimise_time:.2f} s"
             lines.append(f"objective: {s.cost:.6g} (the feasible solution's: {s.cost_feasible:.6g}; {how})")
@@ -216,6 +260,31 @@ class Result:
             lines.append(f"independent re-check: max violation {s.max_violation:.2e} over "
                          f"{s.factors} factors, {s.variables} variables")
         return "\n".join(lines)
+
+
+def _num(x: float) -> str:
+    """4 significant digits; solver noise below 1e-9 (`1.107e-14`) printed as 0."""
+    return "0" if abs(x) < 1e-9 else f"{x:.4g}"
+
+
+def steps_of(task: Any, plan: Any, graph: Any, values: dict) -> list[Step]:
+    """The steps of a solution: each state s_i of `plan` (a logic plan) as text with the values
+    of the graph's variables at step i (trajectories as waypoint lists)."""
+    import numpy as np
+
+    steps = []
+    for i, s in enumerate(plan.states):
+        st = Step(i, plan.names[i - 1] if i > 0 else None, task.state_str(s))
+        for v in graph.variables:
+            if v.step != i or v not in values:
+                continue
+            x = np.asarray(values[v], float).reshape(-1)
+            if v.waypoints:
+                st.trajectories[v.key] = x.reshape(v.waypoints, v.point_dim).tolist()
+            else:
+                st.values[v.key] = x.tolist()
+        steps.append(st)
+    return steps
 
 
 def _opt(x: Any) -> str:

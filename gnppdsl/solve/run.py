@@ -19,7 +19,7 @@ from gnppdsl.solve.optimal import optimisation_phase
 from gnppdsl.solve.options import Progress, SolveOptions
 from gnppdsl.solve.path_length import path_lengths
 from gnppdsl.solve.plan_graph import bound_violation, plan_graph
-from gnppdsl.solve.result import NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats, Step
+from gnppdsl.solve.result import NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats, steps_of
 from gnppdsl.solve.rlgp import ReachabilityCosts
 
 if TYPE_CHECKING:  # pragma: no cover  (clingo, casadi: imported when a solve starts)
@@ -32,7 +32,7 @@ class Run(ReachabilityCosts):
     a plan's graph (`plan_evaluation.PlanEvaluation`) and the loops (`loop.Loop`) derive from it."""
 
     def __init__(self, compiled: Compiled, options: SolveOptions, progress: Progress | None):
-        from gnppdsl.logic.planner import IncrementalPlanner
+        from gnppdsl.logic.modes import make_planner
 
         self.compiled, self.options, self.progress = compiled, options, progress
         self.task = compiled.task
@@ -41,13 +41,17 @@ class Run(ReachabilityCosts):
         self.children_cpu_start = _children_cpu()
         self.deadline = self.start + options.time_limit
         self.stats = Stats()
+        watch = getattr(progress, "watch", None)   # a live status line reads the counters (cli/status.py)
+        if watch is not None:
+            watch(self.stats)
         self.conflicts: list[Conflict] = []
         self.reach = {}                   # robot -> (ReachabilityGraph, block)
         if options.algorithm == "rlgp":
             self.task = self.with_reachability_costs(self.task)
-        t0 = time.perf_counter()
-        self.planner = IncrementalPlanner(self.task, max_horizon=options.max_horizon)
+        t0, c0 = time.perf_counter(), _cpu()
+        self.planner = make_planner(self.task, options.planner, max_horizon=options.max_horizon)
         self.stats.logic_time += time.perf_counter() - t0
+        self.stats.logic_cpu += _cpu() - c0
         from gnppdsl.nlp import jit
 
         forget = getattr(compiled.geometry, "forget_evaluations", None)
@@ -97,13 +101,19 @@ class Run(ReachabilityCosts):
         return graph
 
     def next_plan(self, enumerate_: bool) -> PlanResult:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), _cpu()
         if enumerate_:
             res = self.planner.next_plan(time_limit=max(0.0, self.remaining()))
         else:
             res = self.planner.shortest_plan(time_limit=max(0.0, self.remaining()),
                                              minimize_cost=self.options.algorithm == "rlgp")
         self.stats.logic_time += time.perf_counter() - t0
+        self.stats.logic_cpu += _cpu() - c0
+        if res.plan is not None and self.stats.first_plan_time is None:
+            self.stats.first_plan_time = time.perf_counter() - self.start
+            self.stats.N0_shortest = res.plan.shortest
+            if not res.plan.shortest:
+                self.say(f"logic: {res.message} (N0 = {len(res.plan)} is not proven shortest)")
         return res
     sweeping_restarts = 8                 # random starts behind a conflict without facts
 
@@ -134,12 +144,13 @@ class Run(ReachabilityCosts):
         holds = all(p.holds_in(plan.states[first + l]) for l, p in enumerate(seq))
         if not holds:
             raise AssertionError(f"conflict {seq} does not hold in the plan it came from at step {first}")
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), _cpu()
         new = self.planner.add_conflict(seq)
         if not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
         self.stats.logic_time += time.perf_counter() - t0
+        self.stats.logic_cpu += _cpu() - c0
         c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
                      relaxation, self.stats.plans, first, named=names_of(self.task, seq),
                      subgraph=tuple(sub_factors))
@@ -211,18 +222,7 @@ class Run(ReachabilityCosts):
         self.stats.N = len(plan)
         self.stats.factors = len(factors)
         self.stats.variables = len(graph.variables)
-        steps = []
-        for i, s in enumerate(plan.states):
-            st = Step(i, plan.names[i - 1] if i > 0 else None, self.task.state_str(s))
-            for v in graph.variables:
-                if v.step != i or v not in values:
-                    continue
-                x = np.asarray(values[v], float).reshape(-1)
-                if v.waypoints:
-                    st.trajectories[v.key] = x.reshape(v.waypoints, v.point_dim).tolist()
-                else:
-                    st.values[v.key] = x.tolist()
-            steps.append(st)
+        steps = steps_of(self.task, plan, graph, values)
         tol = self.options.check_tolerance or self.options.tolerance
         extras = {"task": self.task, "plan": plan, "graph": graph, "values": values}
         lengths = path_lengths(graph.variables, values, self.compiled.geometry) \
@@ -266,8 +266,14 @@ class Run(ReachabilityCosts):
         return out.values
 
 
+def _cpu() -> float:
+    """CPU seconds of this process and its finished children (Fast Downward runs in one)."""
+    return time.process_time() + _children_cpu()
+
+
 def _children_cpu() -> float:
-    """CPU seconds of finished child processes (the C compiler of `gnppdsl.nlp.jit`)."""
+    """CPU seconds of finished child processes (the C compiler of `gnppdsl.nlp.jit`, Fast
+    Downward in the logic modes fd and auto)."""
     import resource
 
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)

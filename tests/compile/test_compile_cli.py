@@ -40,6 +40,10 @@ def test_emit_pddl_into_directory(p1, tmp_path, capsys):
     ProblemParser()(problem)
     res = run_fd_on_sas(translate_pddl(domain, problem))
     assert res.solved and res.length == 2
+    assert "(:action pick\n    :parameters (?o - block ?g - gripper ?from - place_type)" in domain
+    assert main(["compile", p1, "--emit", "pddl-ground", "-o", str(tmp_path / "g")]) == 0
+    assert "(:action pick_b1_g_s1" in (tmp_path / "g" / "domain.pddl").read_text()
+    assert main(["compile", p1, "--emit", "sas", "--inline-derived"]) == 2
 
 
 def test_emit_factors_with_plan(p1, capsys, tmp_path):

@@ -15,7 +15,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from planar_reference import EXAMPLES, expected_comment  # noqa: E402
 
-DIRS = ["planar", "lab", "mobile", "field"]
+DIRS = ["planar", "lab", "mobile", "field", "scalability"]
 STDLIB = EXAMPLES.parent / "stdlib"
 
 

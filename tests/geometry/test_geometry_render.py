@@ -60,5 +60,5 @@ def test_render_planar(tmp_path):
 def test_render_bad_dir(tmp_path):
     f = tmp_path / "file"
     f.write_text("x")
-    with pytest.raises(UserError, match="cannot create render directory"):
+    with pytest.raises(UserError, match="cannot create the directory"):
         render_keyframes(_scene3(), None, [{}], str(f / "sub"))

@@ -46,8 +46,12 @@ def test_bad_db_file_is_one_line_exit_2(capsys, tmp_path):
     err = capsys.readouterr().err
     assert code == 2
     assert "not a usable subgraph database" in _one_line(err) and "bad.db" in err
-    code = main(["solve", str(PLANAR / "p1_one_block.pntc"), "--db", str(tmp_path / "no" / "x.db")])
-    assert code == 2 and "does not exist" in _one_line(capsys.readouterr().err)
+    # a missing directory is created (as for --json: README commands work on a fresh clone)
+    code = main(["solve", str(PLANAR / "p1_one_block.pntc"), "--db", str(tmp_path / "no" / "x.db"), "--quiet"])
+    assert code == 0 and (tmp_path / "no" / "x.db").is_file()
+    (tmp_path / "file").write_text("")
+    code = main(["solve", str(PLANAR / "p1_one_block.pntc"), "--db", str(tmp_path / "file" / "x.db")])
+    assert code == 2 and "not a directory" in _one_line(capsys.readouterr().err)
 
 
 def test_bad_problem_file_names_the_place_exit_2(capsys, tmp_path):

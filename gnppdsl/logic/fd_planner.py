@@ -1,0 +1,180 @@
+"""Fast Downward as the logic planner: heuristic search on the Appendix-B task (paper 000, Sec. VII).
+
+Why: the paper's planner. The sequential clingo planner returns shortest plans, but pays for
+them by proving every shorter horizon empty, which grows steeply with the number of objects
+(16 blocks in pairs: horizons 10..13 took 3, 5, 13 and 30 s; examples/scalability). Greedy
+heuristic search never proves anything about shorter plans: `astar(ff())` found the 32-action
+plan of 32 blocks in pairs in 0.15 s CPU. Conflicts are compiled into the task itself
+(`forbid_sequences`, Appendix B; Proposition 7.1: exactly the plans containing <p_0 .. p_L>
+are removed) and blocked plans by `forbid_plan`; the task is written as `.sas` and searched
+from scratch on every call (the paper does the same; writing and searching the compiled
+32-block task takes about 0.2 s).
+
+The heuristic is FF with `axioms=approximate_negative`: FD's default (`approximate_negative_
+cycles`) computes the negation of each derived variable's axioms exactly, a CNF -> DNF
+conversion that blew up on the Lab domain's `clear(x) := not exists o . parent(o) = x`
+(8 blocks: no answer in 60 s and 3 GB); the approximation treats negated derived conditions as
+reachable, so the relaxation stays an over-approximation and FF's dead ends stay safe.
+The search is A* with that inadmissible FF on unit costs (the paper's `astar(ff())`):
+plans are short but not proven shortest (`Plan.shortest` is False). `bound = H + 1` keeps plans
+within the horizon `H`; since FF's dead ends are safe, "no plan" within the bound is a proof.
+
+Plan states and validity come from the SAS+ semantics of the original task
+(`gnppdsl.logic.validate`), never from FD: a plan that breaks a conflict or the task is a bug
+and raises.
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+import resource
+import subprocess
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Iterable, Sequence
+
+from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, Plan, PlannerStats, PlanResult, Status
+from gnppdsl.logic.reformulation import forbid_plan, forbid_sequences
+from gnppdsl.logic.validate import plan_cost, validate_plan
+
+DEFAULT_SEARCH = "astar(ff(axioms=approximate_negative), bound={bound})"
+# FD's exit codes (driver/returncodes.py): 11 = proven unsolvable, 12 = search ended without a
+# plan (incomplete search), 13 = unsolvable within the bound; 22-24 = out of memory / time
+_UNSOLVABLE = (11, 12, 13)
+
+
+def downward_binary() -> Path | None:
+    """The search binary shipped by the `up-fast-downward` wheel, or None when not installed."""
+    spec = importlib.util.find_spec("up_fast_downward")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    path = Path(list(spec.submodule_search_locations)[0]) / "downward" / "builds" / "release" / "bin" / "downward"
+    return path if path.is_file() else None
+
+
+class FastDownwardPlanner:
+    """The planner interface of `IncrementalPlanner` (shortest_plan, add_conflict, block_plan)
+    on Fast Downward. Plans are found, not proven shortest; `next_plan` (plan enumeration in
+    order of length, the One-way baseline) and `minimize_cost` are not offered: those need an
+    exact mode (`IncrementalPlanner`)."""
+
+    def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON, search: str = DEFAULT_SEARCH,
+                 binary: Path | None = None) -> None:
+        binary = binary or downward_binary()
+        if binary is None:
+            raise RuntimeError("the Fast Downward planner needs the package up-fast-downward "
+                               "(pip install up-fast-downward)")
+        self.task = task
+        self.max_horizon = max_horizon
+        self.search = search
+        self.binary = binary
+        self.stats = PlannerStats()
+        self.conflicts: list[tuple[PartialState, ...]] = []
+        self.blocked: list[tuple[int, ...]] = []
+        self._conflict_set: set[tuple[PartialState, ...]] = set()
+        self._blocked_set: set[tuple[int, ...]] = set()
+        self._compiled: SASTask = task     # the task with every conflict and blocked plan in it
+        self.horizon = 0
+        self.fd_cpu = 0.0                  # CPU seconds of the FD processes (children)
+
+    # ---- constraints -------------------------------------------------------------------
+    def add_conflict(self, seq: Sequence[PartialState]) -> bool:
+        """Forbid every plan whose states contain s_i ⊇ p_0, ..., s_{i+L} ⊇ p_L (any i)."""
+        seq = tuple(seq)
+        if seq in self._conflict_set:
+            return False
+        self._compiled = forbid_sequences(self._compiled, [seq])    # checks the facts
+        self.conflicts.append(seq)
+        self._conflict_set.add(seq)
+        return True
+
+    def add_conflicts(self, seqs: Iterable[Sequence[PartialState]]) -> int:
+        return sum(self.add_conflict(s) for s in seqs)
+
+    def block_plan(self, plan: Plan | Sequence[int]) -> bool:
+        """Forbid exactly this operator sequence (`forbid_plan`); False if known."""
+        ops = tuple(getattr(plan, "operators", plan))
+        if ops in self._blocked_set:
+            return False
+        self._compiled = forbid_plan(self._compiled, ops)
+        self.blocked.append(ops)
+        self._blocked_set.add(ops)
+        return True
+
+    # ---- solving -----------------------------------------------------------------------
+    def shortest_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
+                      minimize_cost: bool = False) -> PlanResult:
+        """A plan of length <= the horizon under all conflicts and blocked plans (not proven
+        shortest: `plan.shortest` is False). `minimize_cost` is refused (pair costs are not a
+        SAS+ notion; use the sequential planner)."""
+        if minimize_cost:
+            raise ValueError("the Fast Downward planner does not minimise costs: use planner = sequential")
+        start = time.perf_counter()
+        H = self.max_horizon if max_horizon is None else max_horizon
+        self.horizon = max(self.horizon, H)
+        status, ops = self._run(H, time_limit)
+        elapsed = time.perf_counter() - start
+        if status is Status.TIMEOUT:
+            return PlanResult(Status.TIMEOUT, None, H, elapsed,
+                              f"time limit of {time_limit:g} s reached in Fast Downward's search for "
+                              f"task {self.task.name}")
+        if status is Status.NO_PLAN:
+            extra = [f"{len(self.conflicts)} conflicts"] if self.conflicts else []
+            extra += [f"{len(self.blocked)} blocked plans"] if self.blocked else []
+            under = f" under {' and '.join(extra)}" if extra else ""
+            return PlanResult(Status.NO_PLAN, None, H, elapsed,
+                              f"no plan up to horizon {H} for task {self.task.name}{under}")
+        plan = self._plan(ops)
+        return PlanResult(Status.FOUND, plan, len(plan), elapsed, f"found a plan of length {len(plan)}")
+
+    def next_plan(self, *args, **kwargs) -> PlanResult:
+        raise ValueError("plan enumeration in order of length (One-way) needs planner = sequential")
+
+    def _plan(self, ops: list[int]) -> Plan:
+        check = validate_plan(self.task, ops, self.conflicts)
+        if not check.valid or tuple(ops) in self._blocked_set:
+            raise AssertionError(f"Fast Downward returned a plan the task forbids: {check.error or 'blocked'}")
+        names = tuple(self.task.operators[o].name for o in ops)
+        return Plan(tuple(ops), names, tuple(check.states), plan_cost(self.task, ops))
+
+    def _run(self, horizon: int, time_limit: float | None) -> tuple[Status, list[int]]:
+        """Write the compiled task and run FD's search on it. Operators are renamed o<i> (the
+        plan maps back to indices even where names repeat or empty operators are left out) and
+        cost 1 each: the planner looks for short plans, and FD's `bound` cuts on real costs."""
+        from gnppdsl.compile.sas_writer import write_sas
+
+        t0 = time.perf_counter()
+        renamed = replace(self._compiled, operators=[replace(op, name=f"o{i}", cost=1)
+                                                     for i, op in enumerate(self._compiled.operators)])
+        text = write_sas(renamed)
+        self.stats.ground_time += time.perf_counter() - t0
+        self.stats.ground_calls += 1
+        search = self.search.format(bound=horizon + 1)
+        t1 = time.perf_counter()
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        self.stats.solve_calls += 1
+        try:
+            with tempfile.TemporaryDirectory(prefix="gnpp-fd-") as tmp:
+                plan_file = Path(tmp) / "plan"
+                try:
+                    proc = subprocess.run([str(self.binary), "--search", search, "--internal-plan-file",
+                                           str(plan_file)], input=text, capture_output=True, text=True,
+                                          cwd=tmp, timeout=time_limit, env={**os.environ, "LC_ALL": "C"})
+                except subprocess.TimeoutExpired:
+                    return Status.TIMEOUT, []
+                if proc.returncode in _UNSOLVABLE:
+                    return Status.NO_PLAN, []
+                if proc.returncode != 0 or not plan_file.is_file():
+                    tail = (proc.stdout + proc.stderr)[-1500:]
+                    raise RuntimeError(f"Fast Downward failed (exit {proc.returncode}) with search "
+                                       f"{search!r}:\n{tail}")
+                ops = [int(line.strip()[2:-1].split()[0]) for line in plan_file.read_text().splitlines()
+                       if line.strip() and not line.startswith(";")]
+                return Status.FOUND, ops
+        finally:
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            self.fd_cpu += (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+            self.stats.solve_time += time.perf_counter() - t1

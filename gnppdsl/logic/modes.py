@@ -1,0 +1,161 @@
+"""Logic modes: which planner proposes the plans of the Graph-NLP Planner (solver setting `planner`).
+
+    sequential  clingo, horizon after horizon (`IncrementalPlanner`): shortest plans, plan
+                enumeration in order of length (One-way), cheapest plans (R-LGP)
+    fd          Fast Downward's A* with FF on the Appendix-B task (`FastDownwardPlanner`):
+                short plans without any proof about shorter ones
+    auto        sequential while cheap, Fast Downward once a call's horizon proofs cost more
+                than `switch_after` seconds (the default; `AutoPlanner`)
+
+Why a switch rather than a fixed choice: on the Lab problems clingo's proofs are cheap and its
+shortest plans give the GNPP loop short graph-NLPs and an exact N0, but on the scalability
+families (examples/scalability) the proofs grow steeply with the objects (16 blocks in pairs:
+horizon 13 alone 30 s; clutter_6: horizon 11 23 s) while Fast Downward finds the plan in
+0.02-0.15 s. Measured alternatives inside clingo did not close the gap: horizon 20 with idle
+steps (any plan up to 20) took 3.5 s on 16 blocks (1.75 s with a `#heuristic` preferring goal
+facts) and no plan in 60 s on 32 blocks at horizon 40 (grounding alone 5.5 s); docs/design.md
+"Logic modes and their guarantees" has the numbers and what each mode guarantees.
+
+Every mode forbids exactly the plans of Proposition 7.1 for each conflict (clingo: one
+constraint program per conflict; Fast Downward: Appendix B compiled into the task) and exactly
+the operator sequence of each blocked plan.
+"""
+from __future__ import annotations
+
+import time
+from typing import Iterable, Sequence
+
+from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.errors import UserError
+from gnppdsl.ir.model import SOLVER_PLANNERS
+from gnppdsl.logic.fd_planner import FastDownwardPlanner, downward_binary
+from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, IncrementalPlanner, Plan, PlannerStats, PlanResult, Status
+
+# clingo CPU seconds per `shortest_plan` call before `auto` hands the search to Fast Downward. The Lab
+# examples' calls stay below it (lab5 with 71 conflicts: horizons 0..15 in 1.4 s); the
+# scalability families cross it at the first horizon that needs a real proof (clutter_1:
+# horizons 0..10 in 1.9 s, horizon 11 alone 10 s).
+SWITCH_AFTER = 2.0
+WALL_FACTOR = 4.0      # ... but at most 8 s of wall time (a machine shared by many processes)
+
+
+class AutoPlanner:
+    """Sequential clingo first; Fast Downward from the first call whose proofs of empty horizons
+    exceed `switch_after` seconds (it then receives every conflict and blocked plan so far, and
+    keeps the search). Plan enumeration (`next_plan`, One-way) and cost minimisation (R-LGP)
+    always stay with clingo, the only mode that offers them. Without Fast Downward installed it
+    is the sequential planner."""
+
+    def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON,
+                 switch_after: float = SWITCH_AFTER) -> None:
+        self.task = task
+        self.max_horizon = max_horizon
+        self.switch_after = switch_after
+        self.sequential = IncrementalPlanner(task, max_horizon=max_horizon)
+        self.fd: FastDownwardPlanner | None = None
+        self.switched_at: int | None = None    # number of shortest_plan calls before the switch
+        self._calls = 0
+        self._fd_available = downward_binary() is not None
+
+    # the planner interface ----------------------------------------------------------------
+    @property
+    def stats(self) -> PlannerStats:
+        return self.sequential.stats if self.fd is None else self.fd.stats
+
+    @property
+    def conflicts(self) -> list[tuple[PartialState, ...]]:
+        return self.sequential.conflicts
+
+    @property
+    def blocked(self) -> list[tuple[int, ...]]:
+        return self.sequential.blocked
+
+    @property
+    def horizon(self) -> int:
+        return self.sequential.horizon if self.fd is None else self.fd.horizon
+
+    @property
+    def mode(self) -> str:
+        """The planner answering shortest_plan now: "sequential" or "fd"."""
+        return "sequential" if self.fd is None else "fd"
+
+    def add_conflict(self, seq: Sequence[PartialState]) -> bool:
+        new = self.sequential.add_conflict(seq)
+        if new and self.fd is not None:
+            self.fd.add_conflict(seq)
+        return new
+
+    def add_conflicts(self, seqs: Iterable[Sequence[PartialState]]) -> int:
+        return sum(self.add_conflict(s) for s in seqs)
+
+    def block_plan(self, plan: Plan | Sequence[int]) -> bool:
+        new = self.sequential.block_plan(plan)
+        if new and self.fd is not None:
+            self.fd.block_plan(plan)
+        return new
+
+    def next_plan(self, *args, **kwargs) -> PlanResult:
+        return self.sequential.next_plan(*args, **kwargs)
+
+    def optimal_plan(self, *args, **kwargs) -> PlanResult:
+        return self.sequential.optimal_plan(*args, **kwargs)
+
+    def shortest_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
+                      minimize_cost: bool = False) -> PlanResult:
+        """Sequential while a call's proofs stay under `switch_after` CPU s, then Fast Downward."""
+        self._calls += 1
+        if minimize_cost or not self._fd_available:
+            return self.sequential.shortest_plan(max_horizon, time_limit, minimize_cost)
+        if self.fd is not None:
+            return self.fd.shortest_plan(max_horizon, time_limit)
+        start, cpu0 = time.perf_counter(), time.process_time()
+        # the budget is CPU seconds (the same switch on a loaded machine as on an idle one), capped
+        # in wall time at WALL_FACTOR x the budget and at half the call's time limit, so that Fast
+        # Downward always gets its turn; clingo's limit is wall time, so it runs in slices of what
+        # is left (wall >= CPU: a slice never overspends) and resumes at the horizon it reached,
+        # keeping its learned nogoods
+        wall_cap = WALL_FACTOR * self.switch_after
+        if time_limit is not None:
+            wall_cap = min(wall_cap, time_limit / 2)
+        res: PlanResult | None = None
+        while True:
+            left = min(self.switch_after - (time.process_time() - cpu0), wall_cap - (time.perf_counter() - start))
+            if left <= 0.01:
+                break
+            res = self.sequential.shortest_plan(max_horizon, left, minimize_cost)
+            if res.status is not Status.TIMEOUT:
+                res.time = time.perf_counter() - start
+                return res
+        if time_limit is not None and time.perf_counter() - start >= time_limit:
+            return res or PlanResult(Status.TIMEOUT, None, 0, time.perf_counter() - start,
+                                     f"time limit of {time_limit:g} s reached for task {self.task.name}")
+        self._switch()
+        rest = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - start))
+        out = self.fd.shortest_plan(max_horizon, rest)
+        out.time = time.perf_counter() - start
+        out.message += f" (Fast Downward, after {self.switch_after:g} s CPU of clingo without a plan)"
+        return out
+
+    def _switch(self) -> None:
+        fd = FastDownwardPlanner(self.task, max_horizon=self.max_horizon)
+        for seq in self.sequential.conflicts:
+            fd.add_conflict(seq)
+        for ops in self.sequential.blocked:
+            fd.block_plan(ops)
+        self.fd = fd
+        self.switched_at = self._calls
+
+
+def make_planner(task: SASTask, mode: str = "auto", max_horizon: int = DEFAULT_MAX_HORIZON):
+    """The planner of a logic mode (see the module docstring). `mode` is a `SOLVER_PLANNERS` name;
+    `fd` without Fast Downward installed is a user error naming the setting and the package."""
+    if mode == "sequential":
+        return IncrementalPlanner(task, max_horizon=max_horizon)
+    if mode == "fd":
+        if downward_binary() is None:
+            raise UserError("planner fd: Fast Downward is not installed (pip install up-fast-downward), "
+                            "or choose planner = sequential / auto")
+        return FastDownwardPlanner(task, max_horizon=max_horizon)
+    if mode == "auto":
+        return AutoPlanner(task, max_horizon=max_horizon)
+    raise ValueError(f"unknown planner '{mode}' (one of {', '.join(SOLVER_PLANNERS)})")
