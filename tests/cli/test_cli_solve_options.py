@@ -191,8 +191,10 @@ def test_jit_flag_compiles_kernels_into_the_cache(tmp_path):
     (["--time-limit", "0"], "--time-limit"),
     (["--max-horizon", "-1"], "--max-horizon"),
     (["--switches", "trx"], "--switches"),
-    (["--json", "/nonexistent-dir/x/r.json"], "--json"),
-    (["--db", "/nonexistent-dir/x/r.db"], "--db"),
+    (["--tolerance", "-1"], "--tolerance"),
+    (["--tolerance", "nan"], "--tolerance"),
+    (["--time-limit", "nan"], "--time-limit"),
+    (["--seed", "-1"], "--seed"),
 ])
 def test_option_range_errors_exit_2_with_one_line_naming_the_option(capsys, argv, option):
     code = main(["solve", str(PLANAR / "p1_one_block.pntc"), *argv])
