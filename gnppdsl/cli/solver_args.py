@@ -36,7 +36,7 @@ def add_planner_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--planner", choices=SOLVER_PLANNERS, default=None,
                         help="logic mode: auto (clingo's shortest plans while cheap, Fast Downward once "
                              "a call's proofs of shorter horizons cost more than 2 s), sequential (clingo, "
-                             "shortest plans, exact N0), fd (Fast Downward, A* with FF on the task with the "
+                             "shortest plans, exact N0), fd (Fast Downward, greedy search with FF on the task with the "
                              "conflicts compiled in: short plans, not proven shortest). Default: the "
                              "problem's solver setting `planner`, else auto")
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.compile.ground import GroundRule, ground_rules, error_at, var_name
+from gnppdsl.compile.ground import GroundRule, RuleMatcher, error_at, var_name
 from gnppdsl.compile.sas import PartialState, SASTask
 from gnppdsl.compile.semantics import derive
 from gnppdsl.errors import UserError
@@ -113,7 +113,7 @@ class GraphNLPFactory:
         self.task = task
         self.scene = problem.scene
         self.robot_dims = robot_dims or scene_robot_dims(problem)
-        self.rules: list[GroundRule] = ground_rules(problem, task)
+        self.rules = RuleMatcher(problem, task)      # ground rules on demand (see RuleMatcher)
         self.index = {v.name: i for i, v in enumerate(task.variables)}
         self.cont_order = {name: k for k, name in enumerate(self.domain.continuous)}
         self.obj_order = {name: k for k, name in enumerate(problem.objects)}
@@ -164,12 +164,7 @@ class GraphNLPFactory:
         out: list[FactorInstance] = []
         terms: list[FactorInstance] = []
         for i in range(n + 1):
-            for r, gr in enumerate(self.rules):
-                if gr.span == 2:
-                    if i == n or not (gr.pre.holds_in(states[i]) and gr.post.holds_in(states[i + 1])):
-                        continue
-                elif not gr.pre.holds_in(states[i]):
-                    continue
+            for r, gr in self.rules.matching(states, i):
                 for c, call in enumerate(gr.calls):
                     fi, oi = self._cached_instance(r, c, gr, call, states, i)
                     if fi is not None:
@@ -178,7 +173,7 @@ class GraphNLPFactory:
                         terms.append(oi)
         return out, terms
 
-    def _cached_instance(self, r: int, c: int, gr: GroundRule, call, states, i
+    def _cached_instance(self, r: tuple, c: int, gr: GroundRule, call, states, i
                          ) -> tuple[FactorInstance | None, FactorInstance | None]:
         """Reuse a resolution made at any step of any earlier state sequence.
 

@@ -21,7 +21,7 @@ Binding = dict[str, str]
 
 __all__ = [
     "Binding", "GroundRule", "bindings", "term_name", "var_name", "compare_holds",
-    "substitute", "ground_rules", "error_at", "MARKER",
+    "substitute", "ground_rules", "error_at", "MARKER", "RuleMatcher",
 ]
 
 MARKER = "initial"
@@ -184,3 +184,130 @@ def ground_rules(problem: m.Problem, task: SASTask) -> list[GroundRule]:
             calls = tuple(substitute(c, binding) for c in rule.calls)
             out.append(GroundRule(rule, tuple(binding.items()), pre, post, calls))
     return out
+
+
+# --------------------------------------------------------------------------------------------
+# Rules grounded on demand
+# --------------------------------------------------------------------------------------------
+class RuleMatcher:
+    """The ground rules whose patterns hold at a step, grounded on demand from the states.
+
+    Why not `ground_rules` up front: a rule over several objects is grounded for every binding
+    although a graph-NLP only ever needs those whose pattern holds in the plan's states. On a
+    planar problem with 80 blocks the kinematic-switch rule `parent(o) = p -> parent(o) = p2`
+    alone has 80 * 83 * 82 = 544k bindings: eager grounding took 16 s and 700 MB before the
+    first plan, for a two-action goal that uses one of them. Here a rule's parameters are bound
+    by matching its pattern literals against s_i (and s_{i+1}): a literal whose arguments are
+    bound reads its value from the state (binding a value parameter), one with unbound
+    arguments enumerates them (objects of their types, linear). Only `always` rules without a
+    pattern enumerate all their bindings, once.
+
+    Same result as `ground_rules` filtered by `pre ⊆ s_i` (and `post ⊆ s_{i+1}`), in the same
+    order (rules in declaration order, bindings in object order): tested against it. Each
+    ground rule is made once and kept (`key` identifies it across steps and plans)."""
+
+    def __init__(self, problem: m.Problem, task: SASTask) -> None:
+        self.problem = problem
+        self.look = _FactLookup(task)
+        self.task = task
+        self.rules = list(problem.domain.rules)
+        self.domains = [{p.name: problem.objects_of(p.types) for p in r.params} for r in self.rules]
+        self.position = [{p.name: {o: k for k, o in enumerate(d[p.name])} for p in r.params}
+                         for r, d in zip(self.rules, self.domains)]
+        self._ground: dict[tuple, GroundRule | None] = {}
+        self._static: dict[int, list[tuple]] = {}        # rule -> bindings of pattern-free rules
+        for rule in self.rules:
+            if rule.kind not in ("state", "transition", "always", "initial"):
+                raise error_at(rule.span, f"unknown rule kind '{rule.kind}'")
+            if rule.kind == "initial" and MARKER not in self.look.index:
+                raise error_at(rule.span, "task has no `initial` marker variable")
+            for lit in tuple(rule.pre) + tuple(rule.post):
+                if isinstance(lit, m.StateLit) and lit.negated:
+                    raise error_at(lit.span, "rule patterns are conjunctions of "
+                                            "`var = value` facts; '!=' is not allowed here")
+
+    def matching(self, states: Sequence[Sequence[int]], i: int) -> list[tuple[tuple, GroundRule]]:
+        """(key, ground rule) for every ground rule whose pattern holds at step i of the full
+        states (derived values included): p ⊆ s_i, and p' ⊆ s_{i+1} for transition rules
+        (none at the last step)."""
+        n = len(states) - 1
+        out: list[tuple[tuple, GroundRule]] = []
+        for r, rule in enumerate(self.rules):
+            if rule.kind == "transition" and i == n:
+                continue
+            if rule.kind == "initial" and states[i][self.look.index[MARKER]] != 1:
+                continue
+            nxt = states[i + 1] if rule.kind == "transition" else None
+            for key in self._bindings(r, states[i], nxt):
+                gr = self._rule(r, key)
+                if gr is not None and gr.pre.holds_in(states[i]) and (
+                        gr.post is None or gr.post.holds_in(states[i + 1])):
+                    out.append((key, gr))
+        return out
+
+    def _rule(self, r: int, key: tuple) -> GroundRule | None:
+        if key in self._ground:
+            return self._ground[key]
+        rule = self.rules[r]
+        binding = dict(key[1])
+        gr = None
+        pre = self.look.partial_state(rule.pre, binding)
+        if pre is not None:
+            if rule.kind == "initial":
+                pre = pre.union(PartialState.of([(self.look.index[MARKER], 1)]))
+            post = None
+            if rule.kind == "transition":
+                post = self.look.partial_state(rule.post, binding)
+            if rule.kind != "transition" or post is not None:
+                gr = GroundRule(rule, key[1], pre, post, tuple(substitute(c, binding) for c in rule.calls))
+        self._ground[key] = gr
+        return gr
+
+    def _bindings(self, r: int, s0: Sequence[int], s1: Sequence[int] | None) -> list[tuple]:
+        """Keys (r, binding items in parameter order) of the bindings that satisfy the pattern
+        in (s0, s1) and the `where` guards, sorted as `bindings` enumerates them."""
+        rule = self.rules[r]
+        lits = [(lit, s0) for lit in rule.pre] + [(lit, s1) for lit in rule.post if s1 is not None]
+        if not lits:
+            if r not in self._static:
+                self._static[r] = [(r, tuple(b.items()))
+                                   for b in bindings(self.problem, rule.params, rule.where)]
+            return self._static[r]
+        partial: list[dict[str, str]] = [{}]
+        for lit, state in lits:
+            partial = [b2 for b in partial for b2 in self._extend(r, lit, state, b)]
+            if not partial:
+                return []
+        names = [p.name for p in rule.params]
+        full: list[dict[str, str]] = []
+        for b in partial:
+            free = [n for n in names if n not in b]
+            for combo in product(*(self.domains[r][n] for n in free)):
+                full.append({**b, **dict(zip(free, combo))})
+        pos = self.position[r]
+        full = [b for b in full if all(compare_holds(self.problem, g, b) for g in rule.where)]
+        full.sort(key=lambda b: tuple(pos[n][b[n]] for n in names))
+        return [(r, tuple((n, b[n]) for n in names)) for b in full]
+
+    def _extend(self, r: int, lit, state: Sequence[int], b: dict[str, str]) -> Iterator[dict[str, str]]:
+        """Extensions of the partial binding `b` under which `lit` holds in `state`."""
+        args = lit.args
+        free = list(dict.fromkeys(a.name for a in args if isinstance(a, Param) and a.name not in b))
+        for combo in product(*(self.domains[r][n] for n in free)):
+            b2 = {**b, **dict(zip(free, combo))} if free else b
+            name = var_name(lit.var if isinstance(lit, m.StateLit) else lit.pred,
+                            [term_name(a, b2) for a in args])
+            v = self.look.index.get(name)
+            if v is None:
+                continue
+            if isinstance(lit, m.DerivedLit):
+                if state[v] == (0 if lit.negated else 1):
+                    yield b2
+                continue
+            value = self.task.variables[v].values[state[v]]
+            t = lit.value
+            if isinstance(t, Param) and t.name not in b2:
+                if value in self.position[r][t.name]:
+                    yield {**b2, t.name: value}
+            elif term_name(t, b2) == value:
+                yield b2

@@ -14,13 +14,16 @@ What the compiler decides here (and why):
 - `initial` in any rule adds a marker variable `initial` (true only in s_0: every operator
   sets it false), so conflicts that mention it can only ever match at step 0.
 - Ground operators that can never apply (a value outside a variable's domain, contradictory
-  preconditions, a false static comparison, inconsistent effects) are dropped.
+  preconditions, a false static comparison, inconsistent effects) are dropped, and so are those
+  relaxed reachability from s_0 shows never applicable, with the values no variable can reach
+  (`gnppdsl.compile.reachability`: every plan is kept; 80 planar blocks: 6720 -> 400 operators).
 """
 from __future__ import annotations
 
 from itertools import product
 
 from gnppdsl.compile.ground import MARKER, Binding, bindings, compare_holds, error_at, term_name, var_name
+from gnppdsl.compile.reachability import prune_unreachable
 from gnppdsl.compile.sas import Axiom, Effect, Fact, Operator, PartialState, SASTask, SASVariable
 from gnppdsl.errors import UserError
 from gnppdsl.ir import model as m
@@ -39,8 +42,9 @@ def uses_initial(domain: m.Domain) -> bool:
 
 
 class _Builder:
-    def __init__(self, problem: m.Problem) -> None:
+    def __init__(self, problem: m.Problem, prune: bool = True) -> None:
         self.problem = problem
+        self.prune = prune
         self.domain = problem.domain
         self.names: list[str] = []
         self.values: list[tuple[str, ...]] = []
@@ -184,7 +188,8 @@ class _Builder:
                      for i, (n, vals, der) in enumerate(zip(self.names, self.values, self.derived))]
         init = tuple(0 if der else initial[i] for i, der in enumerate(self.derived))
         axioms = sorted(set(self.axioms), key=lambda a: (variables[a.var].axiom_layer, a.var, a.conditions))
-        return SASTask(variables, init, goal, operators, axioms, name=p.name)
+        task = SASTask(variables, init, goal, operators, axioms, name=p.name)
+        return prune_unreachable(task) if self.prune else task
 
     def initial_state(self, marker: int | None) -> dict[int, int]:
         p = self.problem
@@ -305,6 +310,8 @@ def _simplify(dnf: DNF) -> DNF:
     return list(dict.fromkeys(dnf))
 
 
-def build_task(problem: m.Problem) -> SASTask:
-    """Ground the problem's logic into a SAS+ task (see the module docstring)."""
-    return _Builder(problem).build()
+def build_task(problem: m.Problem, prune: bool = True) -> SASTask:
+    """Ground the problem's logic into a SAS+ task (see the module docstring). `prune=False`
+    keeps what relaxed reachability would drop (the full grounding: its tests, and the
+    oracle that pruning keeps every plan)."""
+    return _Builder(problem, prune).build()

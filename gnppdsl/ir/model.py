@@ -454,7 +454,7 @@ class SolverSettings:
                 compile during the solve, false = never, None = in the background for later solves
     planner     logic mode: "auto" (clingo's shortest plans while a call's proofs stay under 2 s,
                 then Fast Downward), "sequential" (clingo, shortest plans: exact N0), "fd" (Fast
-                Downward's A* with FF on the Appendix-B task: short plans, no proof); see
+                Downward's greedy search with FF on the Appendix-B task: short plans, no proof); see
                 `gnppdsl.logic.modes` and docs/design.md "Logic modes and their guarantees"
     distance_curvature
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
@@ -686,6 +686,22 @@ class Problem:
         wanted = (types,) if isinstance(types, str) else tuple(types)
         return tuple(o for o, t in self.objects.items()
                      if any(self.domain.is_subtype(t, w) for w in wanted))
+
+    @property
+    def static_obstacles(self) -> dict:
+        """Scene objects (`gnppdsl.ir.scene_model.SceneObject`, by name) that never move in this
+        problem: `static: true` ones and every scene object the problem does not declare (kept
+        at its scene pose as a static obstacle). Empty without a scene. See
+        `Scene.static_obstacles`."""
+        return {} if self.scene is None else self.scene.static_obstacles(self.objects)
+
+    @property
+    def undeclared_scene_objects(self) -> tuple[str, ...]:
+        """Scene objects the problem does not declare (scene order): static obstacles for the
+        solver and the verifier, never moved, never named by the logic."""
+        if self.scene is None:
+            return ()
+        return tuple(n for n in self.scene.objects if n not in self.objects)
 
     def object_index(self, name: str) -> int:
         """Position of an object in declaration order (the order `where a < b` uses)."""

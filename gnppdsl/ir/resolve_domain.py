@@ -13,6 +13,7 @@ from pathlib import Path
 from gnppdsl.ir import builtins as B
 from gnppdsl.ir import model as M
 from gnppdsl.ir.expr import Param, Span
+from gnppdsl.ir.families import group_names
 from gnppdsl.ir.resolve_logic import LogicResolver
 from gnppdsl.ir.resolve_rules import RuleResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
@@ -105,7 +106,7 @@ class DomainResolver:
                 for g in d.groups:
                     if not self.check_type(g.type):
                         continue
-                    for n in g.names:
+                    for n in group_names(g, self.r):
                         if n.value in self.constants or n.value in M.BUILTIN_VALUES:
                             self.err(n.span, f"object '{n.value}' is declared twice"
                                      if n.value in self.constants else f"'{n.value}' is a builtin value",

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from gnppdsl.ir import model as M
 from gnppdsl.ir.expr import Obj
+from gnppdsl.ir.families import FactExpander, group_names
 from gnppdsl.ir.resolve_logic import LogicResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
 from gnppdsl.ir.modules import ModuleLibrary
@@ -45,7 +46,7 @@ class ProblemResolver:
                         self.err(g.type.span, f"unknown type '{g.type.value}'", "unknown-type",
                                  did_you_mean(g.type.value, dom.types))
                         continue
-                    for n in g.names:
+                    for n in group_names(g, self.r):
                         if n.value in objects:
                             self.err(n.span, f"object '{n.value}' is declared twice"
                                      + (" (it is a domain constant)" if n.value in dom.constants else ""),
@@ -57,12 +58,14 @@ class ProblemResolver:
         # a stand-in DomainResolver view for literal resolution
         view = _DomainView(dom, self.r)
         logic = LogicResolver(view, objects)
+        expander = FactExpander(objects, dom.types, dom.is_subtype,
+                                set(dom.state_vars) | set(dom.derived) | set(M.BUILTIN_VALUES), self.r)
         init: dict[tuple, M.Assign] = {}
         init_span = None
         for d in f.items:
             if isinstance(d, ast.InitDecl):
                 init_span = init_span or d.span
-                for lit in d.lits:
+                for lit in expander.expand(d.lits):
                     x = logic.literal(lit, {})
                     if x is None:
                         continue
@@ -80,7 +83,7 @@ class ProblemResolver:
         for d in f.items:
             if isinstance(d, ast.GoalDecl):
                 have_goal = True
-                for lit in d.lits:
+                for lit in expander.expand(d.lits):
                     x = logic.literal(lit, {})
                     if x is None:
                         continue

@@ -9,6 +9,7 @@ imported: `gnpp check` stays fast.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ from gnppdsl.ir.expr import Span
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
 from gnppdsl.lang.diagnostics import Reporter, did_you_mean, read_source
 
-TOP_KEYS = ("name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
+TOP_KEYS = ("include", "name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
 ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "base_joint", "ee", "locked",
               "home", "held_pose", "shape", "color")
 BASE_JOINTS = ("fixed", "planar", "free")
@@ -37,6 +38,20 @@ IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
 
 class _Bad(Exception):
     """Raised after a diagnostic has been reported, to skip the rest of an entry."""
+
+
+@dataclass
+class _Part:
+    """The entries of one scene file and of everything it includes, before pose resolution."""
+
+    loaders: list = field(default_factory=list)     # the _Loader of each file (diagnostics)
+    name: str | None = None
+    dim: int | None = None
+    workspace: tuple | None = None
+    robots: dict = field(default_factory=dict)
+    raw: dict = field(default_factory=dict)         # object name -> entry (see `_Loader.obj`)
+    where: dict = field(default_factory=dict)       # name -> "file:line:col" of its definition
+    ignore: list = field(default_factory=list)      # (loader, pair node)
 
 
 # ----------------------------------------------------------------------------------------
@@ -416,10 +431,11 @@ class _Loader:
         return dict(name=name, shape=shape, rel=pose, parent=parent,
                     color=self.color(m["color"][1]) if "color" in m else (0.6, 0.6, 0.6, 1.0),
                     static=self.boolean(m["static"][1], "static") if "static" in m else False,
-                    attributes=attrs, source=str(self.span(knode)))
+                    attributes=attrs, source=str(self.span(knode)), loader=self)
 
     # ---- the file
-    def load(self, text: str) -> Scene | None:
+    def compose(self, text: str):
+        """The YAML node tree of `text` (None after reporting invalid YAML or an empty file)."""
         import yaml
 
         try:
@@ -435,6 +451,38 @@ class _Loader:
         if root is None:
             self.r.error(Span(self.path, 1, 1), "the scene file is empty", "scene")
             return None
+        return root
+
+    def load(self, text: str) -> Scene | None:
+        part = self.part(text, (str(Path(self.path).resolve()),))
+        if part is None:
+            return None
+        dim = part.dim if part.dim is not None else 3
+        objects = self.resolve_poses(part.raw, part.robots, dim)
+        ignore: set[frozenset[str]] = set()
+        for owner, pair in part.ignore:
+            names = []
+            for x in pair.value:
+                n = owner.scalar(x)
+                if n not in part.robots and n not in part.raw:
+                    owner.error(x, f"unknown robot or object '{n}'", "unknown-name",
+                                did_you_mean(str(n), list(part.robots) + list(part.raw)))
+                names.append(str(n))
+            ignore.add(frozenset(names))
+        if not all(x.ok for x in part.loaders):
+            return None
+        name = part.name if part.name is not None else Path(self.path).stem
+        return Scene(name, dim, part.robots, objects, frozenset(ignore), part.workspace, self.path)
+
+    def part(self, text: str, chain: tuple[str, ...]) -> "_Part | None":
+        """One file's entries merged after those of the files it includes (`include:`, paths
+        relative to this file, depth first, in order). Poses are resolved later, over the
+        merged entries, so an object may rest on a parent from another file."""
+        import yaml
+
+        root = self.compose(text)
+        if root is None:
+            return None
         try:
             top = self.mapping(root, "the scene")
         except _Bad:
@@ -442,23 +490,25 @@ class _Loader:
         for k, (kn, _) in top.items():
             if k not in TOP_KEYS:
                 self.unknown_key(kn, k, TOP_KEYS, "the scene")
-        name = Path(self.path).stem
-        dim = 3
-        workspace = None
+        out = _Part(loaders=[self])
+        if "include" in top:
+            self.include(top["include"][1], chain, out)
         try:
             if "name" in top:
-                name = str(self.scalar(top["name"][1]))
+                out.name = str(self.scalar(top["name"][1]))
             if "dimension" in top:
                 d = self.scalar(top["dimension"][1])
                 if d not in (2, 3) or isinstance(d, bool):
                     self.fail(top["dimension"][1], "dimension is 2 (planar) or 3")
-                dim = d
+                if out.dim is not None and out.dim != d:
+                    self.fail(top["dimension"][1], f"dimension {d} differs from the included "
+                              f"scenes' ({out.dim})", "include")
+                out.dim = d
         except _Bad:
             pass
+        dim = out.dim if out.dim is not None else 3
         if "workspace" in top:
             try:
-                import yaml
-
                 wn = top["workspace"][1]
                 if not isinstance(wn, yaml.SequenceNode) or len(wn.value) != 2:
                     self.fail(wn, "workspace is [[lower...], [upper...]]")
@@ -466,39 +516,36 @@ class _Loader:
                 hi = self.numbers(wn.value[1], "workspace upper bound", dim)
                 if any(a > b for a, b in zip(lo, hi)):
                     self.fail(wn, "workspace lower bounds must not exceed the upper bounds")
-                workspace = (lo, hi)
+                out.workspace = (lo, hi)
             except _Bad:
                 pass
-        robots: dict[str, SceneRobot] = {}
         if "robots" in top:
             try:
                 for rname, (kn, vn) in self.mapping(top["robots"][1], "robots").items():
+                    if self.taken(out, rname, kn):
+                        continue
                     try:
                         rb = self.robot(rname, kn, vn, dim)
                         if rb is not None:
-                            robots[rname] = rb
+                            out.robots[rname] = rb
+                            out.where[rname] = str(self.span(kn))
                     except _Bad:
                         pass
             except _Bad:
                 pass
-        raw: dict[str, dict] = {}
         if "objects" in top:
             try:
                 for oname, (kn, vn) in self.mapping(top["objects"][1], "objects").items():
-                    if oname in robots:
-                        self.error(kn, f"'{oname}' is already a robot", "duplicate")
+                    if self.taken(out, oname, kn):
                         continue
                     try:
-                        raw[oname] = self.obj(oname, kn, vn, dim)
+                        out.raw[oname] = self.obj(oname, kn, vn, dim)
+                        out.where[oname] = str(self.span(kn))
                     except _Bad:
                         pass
             except _Bad:
                 pass
-        objects = self.resolve_poses(raw, robots, dim)
-        ignore: set[frozenset[str]] = set()
         if "ignore_collisions" in top:
-            import yaml
-
             node = top["ignore_collisions"][1]
             try:
                 if not isinstance(node, yaml.SequenceNode):
@@ -507,19 +554,71 @@ class _Loader:
                     if not isinstance(pair, yaml.SequenceNode) or len(pair.value) != 2:
                         self.error(pair, "each entry of ignore_collisions is a pair [a, b]")
                         continue
-                    names = []
-                    for x in pair.value:
-                        n = self.scalar(x)
-                        if n not in robots and n not in raw:
-                            self.error(x, f"unknown robot or object '{n}'", "unknown-name",
-                                       did_you_mean(str(n), list(robots) + list(raw)))
-                        names.append(str(n))
-                    ignore.add(frozenset(names))
+                    out.ignore.append((self, pair))
             except _Bad:
                 pass
-        if not self.ok:
-            return None
-        return Scene(name, dim, robots, objects, frozenset(ignore), workspace, self.path)
+        return out
+
+    def taken(self, out: "_Part", name: str, knode) -> bool:
+        """Report a robot or object name already defined (here or in an included scene)."""
+        if name not in out.robots and name not in out.raw:
+            return False
+        what = "a robot" if name in out.robots else "an object"
+        self.error(knode, f"'{name}' is already {what}", "duplicate", f"defined at {out.where[name]}")
+        return True
+
+    def include(self, node, chain: tuple[str, ...], out: "_Part") -> None:
+        """Merge the scenes named by `include:` (one path or a list) into `out`: a missing file,
+        a cycle (a scene including itself, directly or not) and a second definition of a name are
+        reported at the offending entry."""
+        import yaml
+
+        items = node.value if isinstance(node, yaml.SequenceNode) else [node]
+        for item in items:
+            try:
+                rel = self.string(item, "include")
+            except _Bad:
+                continue
+            path = (self.dir / rel).resolve()
+            if str(path) in chain:
+                cycle = " -> ".join(Path(c).name for c in chain + (str(path),))
+                self.error(item, f"scene include cycle: {cycle}", "cycle",
+                           "a scene cannot include itself, directly or through other scenes")
+                continue
+            try:
+                text = path.read_text(encoding="utf-8")
+            except FileNotFoundError:
+                self.error(item, f"included scene not found: {rel}", "missing-file",
+                           f"paths are relative to {self.dir}")
+                continue
+            except (OSError, UnicodeDecodeError) as exc:
+                self.error(item, f"cannot read included scene {rel}: {exc}", "unreadable-file")
+                continue
+            self.r.sources.add(str(path), text)
+            child = _Loader(str(path), self.r)
+            child.attr_spans = self.attr_spans
+            sub = child.part(text, chain + (str(path),))
+            out.loaders.append(child)
+            if sub is None:
+                self.ok = False
+                continue
+            out.loaders.extend(x for x in sub.loaders if x is not child)
+            if sub.dim is not None:
+                if out.dim is not None and out.dim != sub.dim:
+                    self.error(item, f"{rel} has dimension {sub.dim}, an earlier include "
+                               f"{out.dim}", "include")
+                    continue
+                out.dim = sub.dim
+            for n in list(sub.robots) + list(sub.raw):
+                if n in out.robots or n in out.raw:
+                    self.error(item, f"'{n}' is defined both in {rel} ({sub.where[n]}) and at "
+                               f"{out.where[n]}", "duplicate")
+            out.robots.update((k, v) for k, v in sub.robots.items() if k not in out.raw)
+            out.raw.update((k, v) for k, v in sub.raw.items() if k not in out.robots)
+            out.where.update({k: v for k, v in sub.where.items() if k not in out.where})
+            out.ignore.extend(sub.ignore)
+            out.name = out.name if out.name is not None else sub.name
+            out.workspace = out.workspace if out.workspace is not None else sub.workspace
 
     def resolve_poses(self, raw: dict[str, dict], robots: dict, dim: int) -> dict[str, SceneObject]:
         """World poses: compose along `parent:` chains (planar: SE2, then lifted to SE3)."""
@@ -535,8 +634,9 @@ class _Loader:
                 w = rel
             else:
                 pname, pnode = entry["parent"]
+                owner = entry.get("loader", self)
                 if pname in chain:
-                    self.fail(pnode, f"parent chain of '{name}' is a cycle: {' -> '.join(chain + [pname])}",
+                    owner.fail(pnode, f"parent chain of '{name}' is a cycle: {' -> '.join(chain + [pname])}",
                               "cycle")
                 if pname in raw:
                     pw = get(pname, chain + [pname])
@@ -546,7 +646,7 @@ class _Loader:
                     if dim == 2 and len(pw) != 3:
                         pw = (0.0, 0.0, 0.0)
                 else:
-                    self.fail(pnode, f"unknown parent '{pname}'", "unknown-name",
+                    owner.fail(pnode, f"unknown parent '{pname}'", "unknown-name",
                               did_you_mean(pname, list(raw) + list(robots)))
                 w = compose_se2(pw, rel) if dim == 2 else compose(pw, rel)
             world[name] = w

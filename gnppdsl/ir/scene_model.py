@@ -11,7 +11,7 @@ documented in docs/scene.md.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Iterable
 
 
 @dataclass(frozen=True)
@@ -67,3 +67,14 @@ class Scene:
 
     def entity(self, name: str) -> SceneObject | SceneRobot | None:
         return self.objects.get(name) or self.robots.get(name)
+
+    def static_obstacles(self, declared: Iterable[str]) -> dict[str, SceneObject]:
+        """The objects with a shape that never move when the problem's objects are `declared`:
+        those marked `static: true` and those the problem does not declare (a scene may hold
+        more than one problem uses, e.g. a scene shared by a family; an object the logic cannot
+        move stays at its scene pose). Scene order. Robots and declared movable objects must
+        not collide with them: `Problem.static_obstacles` is what the solver's collision
+        coverage and the independent verifier read."""
+        names = set(declared)
+        return {n: o for n, o in self.objects.items()
+                if o.shape.kind != "none" and (o.static or n not in names)}

@@ -28,7 +28,7 @@ class Name:
 class LTerm:
     """`name` (args None) or `name(args)`."""
 
-    name: Name
+    name: "Name | IndexedName"          # IndexedName only in `init` / `goal` facts
     args: tuple["LTerm", ...] | None
     span: Span | None = field(**_S)
 
@@ -267,8 +267,18 @@ class ConstDecl:
 
 
 @dataclass(frozen=True)
+class ObjRange:
+    """`b1..b16` in an `objects` or `constants` group: the objects b1, b2, ..., b16 (same prefix,
+    integer suffixes; the resolver expands it and reports a bad range at its span)."""
+
+    lo: Name
+    hi: Name
+    span: Span | None = field(**_S)
+
+
+@dataclass(frozen=True)
 class ObjGroup:
-    names: tuple[Name, ...]
+    names: tuple[Name | ObjRange, ...]
     type: Name
     span: Span | None = field(**_S)
 
@@ -462,14 +472,57 @@ class SceneRef:
 
 
 @dataclass(frozen=True)
+class IndexedName:
+    """`b{2*i}` in an `init` / `goal` fact: an object name made of a prefix and an integer
+    index expression over `forall` indices (`gnppdsl.ir.families` evaluates it)."""
+
+    prefix: Name
+    index: "ExprAst"
+    span: Span | None = field(**_S)
+
+    @property
+    def value(self) -> str:
+        return f"{self.prefix.value}{{...}}"
+
+
+@dataclass(frozen=True)
+class TypeBinder:
+    """`b: block` (or `x: spot | region`) in a fact `forall`: every problem object of the types."""
+
+    name: Name
+    types: tuple[Name, ...]
+    span: Span | None = field(**_S)
+
+
+@dataclass(frozen=True)
+class IndexBinder:
+    """`i in 1..8` in a fact `forall`: the integers lo..hi (both included)."""
+
+    name: Name
+    lo: "ENum"
+    hi: "ENum"
+    span: Span | None = field(**_S)
+
+
+@dataclass(frozen=True)
+class FactForall:
+    """`forall b: block . parent(b) = table` or `forall i in 1..8 { ... }` in `init` / `goal`:
+    the facts of `body` for every combination of the binders (expanded by the resolver)."""
+
+    binders: tuple[TypeBinder | IndexBinder, ...]
+    body: tuple["Lit | FactForall", ...]
+    span: Span | None = field(**_S)
+
+
+@dataclass(frozen=True)
 class InitDecl:
-    lits: tuple[Lit, ...]
+    lits: tuple[Lit | FactForall, ...]
     span: Span | None = field(**_S)
 
 
 @dataclass(frozen=True)
 class GoalDecl:
-    lits: tuple[Lit, ...]
+    lits: tuple[Lit | FactForall, ...]
     span: Span | None = field(**_S)
 
 

@@ -126,6 +126,9 @@ def _make_transformer(path: str, problems: list):
     def name(t: Token) -> ast.Name:
         return ast.Name(str(t), tok_span(t))
 
+    def _lname(x) -> ast.Name | ast.IndexedName:
+        return x if isinstance(x, ast.IndexedName) else name(x)
+
     def real(children):
         return [c for c in children if c is not None]
 
@@ -182,8 +185,12 @@ def _make_transformer(path: str, problems: list):
         def const_decl(self, m, c):
             return ast.ConstDecl(name(c[0]), c[1], sp(m))
 
+        def obj_range(self, m, c):
+            return ast.ObjRange(name(c[0]), name(c[1]), sp(m))
+
         def obj_group(self, m, c):
-            return ast.ObjGroup(tuple(name(t) for t in c[:-1]), name(c[-1]), sp(m))
+            return ast.ObjGroup(tuple(x if isinstance(x, ast.ObjRange) else name(x) for x in c[:-1]),
+                                name(c[-1]), sp(m))
 
         def constants_decl(self, m, c):
             return ast.ConstantsDecl(tuple(c), sp(m))
@@ -238,10 +245,29 @@ def _make_transformer(path: str, problems: list):
                                   tuple(dups), sp(m))
 
         def lname(self, m, c):
-            return ast.LTerm(name(c[0]), None, sp(m))
+            return ast.LTerm(_lname(c[0]), None, sp(m))
 
         def lapp(self, m, c):
-            return ast.LTerm(name(c[0]), tuple(real(c[1:])), sp(m))
+            return ast.LTerm(_lname(c[0]), tuple(real(c[1:])), sp(m))
+
+        def indexed_name(self, m, c):
+            return ast.IndexedName(name(c[0]), c[1], sp(m))
+
+        # ---- init / goal facts
+        def fact_list(self, m, c):
+            return tuple(c)
+
+        def type_binder(self, m, c):
+            return ast.TypeBinder(name(c[0]), tuple(name(t) for t in c[1:]), sp(m))
+
+        def index_binder(self, m, c):
+            return ast.IndexBinder(name(c[0]), num(c[1]), num(c[2]), sp(m))
+
+        def fact_forall(self, m, c):
+            return ast.FactForall(tuple(c[:-1]), (c[-1],), sp(m))
+
+        def fact_forall_block(self, m, c):
+            return ast.FactForall(tuple(c[:-1]), tuple(c[-1]), sp(m))
 
         def lop(self, m, c):
             return name(c[0])

@@ -2,7 +2,7 @@
 
     sequential  clingo, horizon after horizon (`IncrementalPlanner`): shortest plans, plan
                 enumeration in order of length (One-way), cheapest plans (R-LGP)
-    fd          Fast Downward's A* with FF on the Appendix-B task (`FastDownwardPlanner`):
+    fd          Fast Downward's greedy search with FF on the Appendix-B task (`FastDownwardPlanner`):
                 short plans without any proof about shorter ones
     auto        sequential while cheap, Fast Downward once a call's horizon proofs cost more
                 than `switch_after` seconds (the default; `AutoPlanner`)

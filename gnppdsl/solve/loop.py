@@ -23,6 +23,8 @@ planner and to ipopt (max_wall_time), so the loop ends soon after it with status
 """
 from __future__ import annotations
 
+import time
+
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
@@ -136,8 +138,10 @@ def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, opti
     Keyword overrides (algorithm, switches, time_limit, seed, ...) apply on top of `options`,
     or of the problem's own solver settings when `options` is None.
     """
+    started = (time.perf_counter(), time.process_time())     # loading and grounding count
     if isinstance(problem, Compiled):
         compiled = problem
+        started = (None, None)
     elif isinstance(problem, (str, Path, list, tuple)):
         compiled = load_and_compile(problem)
     else:
@@ -146,4 +150,6 @@ def solve_problem(problem: str | Path | Sequence[str] | Problem | Compiled, opti
         options = SolveOptions.from_settings(getattr(compiled.problem, "settings", None), **overrides)
     elif overrides:
         options = replace(options, **{k: v for k, v in overrides.items() if v is not None}).validated()
+    if options.started is None:
+        options = replace(options, started=started[0], cpu_started=started[1])
     return solve_compiled(compiled, options, progress)

@@ -58,6 +58,12 @@ class SolveOptions:
                                      # verdict gets the second opinion of `recheck` when it ends the
                                      # time search, the restarts when it is the conflict (see
                                      # LAZY_MAX_FACTORS for why)
+    started: float | None = None     # time.perf_counter() when this solve began, loading and
+                                     # grounding included: the time limit (and total_time) counts
+                                     # from there. solve_problem on a path or Problem: before
+                                     # loading (`gnpp solve` passes what is left); None: when the loop
+                                     # starts (solve_compiled on a problem compiled earlier)
+    cpu_started: float | None = None  # time.process_time() at that moment (cpu_time counts from it)
     optimise: bool = True            # minimise the plan's `minimize` terms from its feasible solution
                                      # (`solve.optimal`); without terms nothing happens
     certify: bool = True             # gnpp: the lazy search decides a subgraph of a cheap graph

@@ -36,8 +36,10 @@ class Run(ReachabilityCosts):
 
         self.compiled, self.options, self.progress = compiled, options, progress
         self.task = compiled.task
-        self.start = time.perf_counter()
-        self.cpu_start = time.process_time()
+        # the deadline counts from the solve's start, loading and grounding included when the
+        # caller says when that was (`SolveOptions.started`)
+        self.start = time.perf_counter() if options.started is None else options.started
+        self.cpu_start = time.process_time() if options.cpu_started is None else options.cpu_started
         self.children_cpu_start = _children_cpu()
         self.deadline = self.start + options.time_limit
         self.stats = Stats()

@@ -40,13 +40,22 @@ def test_pddl_round_trip_through_fd_translator(name, clear, expected):
 
 
 def test_variables_domains_and_initial_state():
-    task = build_task(planar_ir.problem("p2"))
+    task = build_task(planar_ir.problem("p2"), prune=False)
     names = [v.name for v in task.variables]
     assert names == ["parent(b1)", "parent(b2)", "holding(g)", "initial"]
     assert task.variables[0].values == ("s1", "s2", "ra", "rb", "g")      # place | gripper
     assert task.variables[2].values == ("b1", "b2", "none")
     assert task.state_str(task.initial) == "{parent(b1) = s1, parent(b2) = s2, holding(g) = none, initial}"
     assert task.partial_state_str(task.goal) == "{parent(b1) = rb, parent(b2) = ra}"
+    # relaxed reachability: b1 never rests on s2 (place only puts into regions), b2 never on s1
+    pruned = build_task(planar_ir.problem("p2"))
+    assert [v.name for v in pruned.variables] == names
+    assert pruned.variables[0].values == ("s1", "ra", "rb", "g")
+    assert pruned.variables[1].values == ("s2", "ra", "rb", "g")
+    assert pruned.state_str(pruned.initial) == task.state_str(task.initial)
+    assert pruned.partial_state_str(pruned.goal) == task.partial_state_str(task.goal)
+    assert {op.name for op in pruned.operators} < {op.name for op in task.operators}
+    assert "pick(b1, g, s2)" in {op.name for op in task.operators} - {op.name for op in pruned.operators}
 
 
 def test_grounding_drops_impossible_operators_and_sets_marker():

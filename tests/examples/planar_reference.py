@@ -20,6 +20,24 @@ from pathlib import Path
 import yaml
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def raw_scene(path: Path) -> dict:
+    """A scene YAML as plain data with its `include:`s merged (robots and objects of the
+    included files first), read with PyYAML alone: the tests compare the files' numbers with
+    the paper's without going through the project's loader."""
+    data = yaml.safe_load(Path(path).read_text()) or {}
+    inc = data.pop("include", [])
+    merged: dict = {"robots": {}, "objects": {}}
+    for rel in [inc] if isinstance(inc, str) else inc:
+        sub = raw_scene(Path(path).parent / rel)
+        for key in ("robots", "objects"):
+            merged[key].update(sub.pop(key, {}) or {})
+        merged.update({k: v for k, v in sub.items() if k not in merged})
+    for key in ("robots", "objects"):
+        merged[key].update(data.pop(key, {}) or {})
+    merged.update(data)
+    return merged
 PLANAR = EXAMPLES / "planar"
 GRASP_TOL = 0.01          # stdlib/planar.pntc: const grasp_tol
 

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from planar_reference import EXAMPLES, expected_comment  # noqa: E402
+from planar_reference import EXAMPLES, expected_comment, raw_scene  # noqa: E402
 
 DIRS = ["planar", "lab", "mobile", "field", "scalability"]
 STDLIB = EXAMPLES.parent / "stdlib"
@@ -40,9 +40,13 @@ def _section(text: str, name: str) -> str:
 
 def _declared_objects(text: str) -> dict[str, str]:
     out = {}
-    for names, ty in re.findall(r"([\w\s,]+?)\s*:\s*(\w+)", _section(text, "objects")):
+    for names, ty in re.findall(r"([\w\s,.]+?)\s*:\s*(\w+)", _section(text, "objects")):
         for n in names.replace(",", " ").split():
-            out[n] = ty
+            rng = re.fullmatch(r"([A-Za-z_]+)(\d+)\.\.\1(\d+)", n)       # b1..b4: b1, b2, b3, b4
+            for k in range(int(rng.group(2)), int(rng.group(3)) + 1) if rng else ():
+                out[f"{rng.group(1)}{k}"] = ty
+            if not rng:
+                out[n] = ty
     return out
 
 
@@ -69,7 +73,7 @@ def test_scene_has_every_object(d, name, e):
     """Each problem object is a robot or object of the scene (domain constants too)."""
     text = (EXAMPLES / d / e["file"]).read_text()
     scene_file = re.search(r'\bscene\s+"([^"]+)"', text).group(1)
-    scene = yaml.safe_load((EXAMPLES / d / scene_file).read_text())
+    scene = raw_scene(EXAMPLES / d / scene_file)
     names = set(scene.get("robots", {})) | set(scene.get("objects", {}))
     declared = _declared_objects(text)
     domain = (EXAMPLES / d / "domain.pntc").read_text()
@@ -100,7 +104,7 @@ def test_planar_scene_attributes():
 def test_lab_scene_matches_paper():
     """The paper's Lab geometry (Sec. VIII-A, robotics issue): table, bases, block size."""
     for f in ("lab.yaml", "lab_obstacles.yaml", "lab4.yaml"):
-        sc = yaml.safe_load((EXAMPLES / "lab" / f).read_text())
+        sc = raw_scene(EXAMPLES / "lab" / f)
         t = sc["objects"]["table"]
         assert t["size"][:2] == [2.3, 1.24]
         assert abs(t["pose"]["xyz"][2] + t["size"][2] / 2 - 0.6) < 1e-9

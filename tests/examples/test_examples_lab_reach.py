@@ -17,11 +17,11 @@ import pytest
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from planar_reference import EXAMPLES  # noqa: E402
+from planar_reference import EXAMPLES, raw_scene  # noqa: E402
 
 import pinocchio as pin  # noqa: E402  (a dependency of the package: never a skip)
 
-SCENE = yaml.safe_load((EXAMPLES / "lab" / "lab.yaml").read_text())
+SCENE = raw_scene(EXAMPLES / "lab" / "lab.yaml")
 
 
 def _model():
