@@ -12,6 +12,8 @@ import time
 import casadi as ca
 import numpy as np
 
+from gnppdsl import interrupt
+
 
 class IterationMonitor(ca.Callback):
     """ipopt iteration callback: stops a run as soon as the *real* constraints hold (a
