@@ -110,7 +110,7 @@ def _run(args: argparse.Namespace, start: float) -> int:
             else:   # a live status line on a terminal, a line per plan otherwise (gnppdsl.cli.status)
                 from gnppdsl.cli.status import SolveStatus
 
-                with SolveStatus(compiled.problem.name, options.time_limit,
+                with SolveStatus(compiled.problem.name, limit, spent=time.monotonic() - start,
                                  echo=emit if args.verbose else None) as status:
                     result = gnppdsl.solve_problem(compiled, options, progress=status)
             result.time_limit = limit

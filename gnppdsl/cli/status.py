@@ -75,10 +75,11 @@ class SolveStatus(StatusLine):
 
     def __init__(self, label: str, time_limit: float | None = None, stream: TextIO | None = None,
                  tty: bool | None = None, echo: Callable[[str], None] | None = None,
-                 interval: float = 0.25) -> None:
+                 interval: float = 0.25, spent: float = 0.0) -> None:
         super().__init__(stream, tty, interval)
         self.label = label
-        self.time_limit = time_limit
+        self.time_limit = time_limit           # the user's limit, which loading counts against
+        self.spent = spent                     # seconds of it spent before the solve (loading)
         self.echo = echo                       # --verbose: every solver message, printed whole
         self.stats: Any = None
         self.plans = 0                         # counted from the messages until stats are watched
@@ -114,7 +115,7 @@ class SolveStatus(StatusLine):
                  f"conflicts {conflicts}"]
         if s is not None:
             parts.append(f"NLPs {s.nlp_solves}")
-        elapsed = time.perf_counter() - self.t0
+        elapsed = self.spent + time.perf_counter() - self.t0
         parts.append(f"{elapsed:.1f} s" + (f" of {self.time_limit:g} s" if self.time_limit else ""))
         return " · ".join(parts)
 
