@@ -24,16 +24,11 @@ def test_every_mobile_problem_has_a_solve_test():
     assert set(ALGORITHM) == set(EXPECTED)
 
 
-# Measured at afb9c15 (seed 0, R-LGP): pick_place is solved (N 6) but the verification finds
-# mm's left finger 6.1 mm inside red2 at s6 -- a finger-object pair no factor of the mobile domain
-# covers. The active-set collision coverage of issue 20 (part A) adds such pairs; strict: this
-# fails as soon as the solution verifies, so the mark cannot outlive the fix.
-KNOWN = {"pick_place": pytest.mark.xfail(strict=True, reason="s6: collision red2 <-> mm/panda_leftfinger "
-                                                                "-0.0061 (issue 20 A: active-set pairs)")}
-
-
+# pick_place (R-LGP, seed 0) was solved with mm's left finger 6.1 mm inside red2 at s6 (a pair
+# no factor of the mobile domain covers) until the active set of issue 20 (part A) repaired it:
+# the loop now verifies each solution and adds the violated pairs as factors.
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [pytest.param(n, marks=KNOWN.get(n, ())) for n in sorted(ALGORITHM)])
+@pytest.mark.parametrize("name", sorted(ALGORITHM))
 def test_mobile_problem_solved_and_verified(name):
     c = load_and_compile(str(MOBILE / EXPECTED[name]["file"]))
     r = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, algorithm=ALGORITHM[name],
