@@ -20,7 +20,7 @@ at https://www.fast-downward.org/TranslatorOutputFormat; the points that matter 
 """
 from __future__ import annotations
 
-from gnppdsl.compile.sas import Axiom, Operator, SASTask
+from gnppdsl.compile.sas import Operator, SASTask
 
 __all__ = ["write_sas", "operator_sections", "check_axiom_layers", "atom_name"]
 

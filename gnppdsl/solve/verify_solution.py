@@ -39,7 +39,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from gnppdsl.geometry.robots import matrix_to_se3, se3_to_matrix
+from gnppdsl.geometry.robots import matrix_to_se3
 from gnppdsl.geometry.verify import entity_matrix, joint_limit_violations, pair_distances, resting_on
 
 _FACT = re.compile(r"(\w+)\((\w+)\)\s*=\s*(\w+)")
