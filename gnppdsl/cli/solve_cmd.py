@@ -56,6 +56,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-optimise", dest="optimise", action="store_false", default=None,
                         help="return the first feasible solution without minimising the domain's "
                              "`minimize` terms")
+    parser.add_argument("--anytime", type=float, default=None, metavar="SECONDS",
+                        help="after the first solution, look this long (within --time-limit) for "
+                             "cheaper logical plans under a cost bound (action costs + a lower bound "
+                             "of the objective); the result says whether the cost was proved optimal")
 
 
 #: seconds the hard alarm (`gnppdsl.interrupt.arm_time_limit`) waits after the loop's own
@@ -97,7 +101,7 @@ def _run(args: argparse.Namespace, start: float) -> int:
                 algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
                 seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
                 order=args.order, jit=args.jit, distance_curvature=args.distance_curvature, planner=args.planner,
-                active_set=args.active_set, optimise=args.optimise,
+                active_set=args.active_set, optimise=args.optimise, anytime=args.anytime,
             )
             limit = options.time_limit
             left = limit - (time.monotonic() - start)

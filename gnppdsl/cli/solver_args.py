@@ -47,7 +47,7 @@ def check_ranges(args: argparse.Namespace) -> None:
     time limit or a tolerance of 1e3 are errors naming the option, exit 2."""
     from gnppdsl.errors import UserError
 
-    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime"):
         value = getattr(args, key, None)
         if value is None:
             continue
