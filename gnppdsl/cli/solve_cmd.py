@@ -56,6 +56,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-optimise", dest="optimise", action="store_false", default=None,
                         help="return the first feasible solution without minimising the domain's "
                              "`minimize` terms")
+    parser.add_argument("--instance", type=int, default=None, metavar="K",
+                        help="solve randomised instance K of the problem's family: the scene's "
+                             "`random_xy` objects drawn with seed K (docs/scene.md)")
     parser.add_argument("--anytime", type=float, default=None, metavar="SECONDS",
                         help="after the first solution, look this long (within --time-limit) for "
                              "cheaper logical plans under a cost bound (action costs + a lower bound "
@@ -95,7 +98,7 @@ def _run(args: argparse.Namespace, start: float) -> int:
     compiled = None
     try:
         with interrupt.interruptible():
-            compiled = gnppdsl.load_and_compile(args.paths)
+            compiled = gnppdsl.load_and_compile(args.paths, instance=args.instance)
             options = gnppdsl.SolveOptions.from_settings(
                 compiled.problem.settings,
                 algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,

@@ -17,7 +17,7 @@ from gnppdsl.solve.verify_solution import verify_solution
 
 MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 EXPECTED = yaml.safe_load((MOBILE / "expected.yaml").read_text())["problems"]
-ALGORITHM = {"sort2": "gnpp", "pick_place": "rlgp", "sort4": "rlgp"}
+ALGORITHM = {"sort2": "gnpp", "pick_place": "rlgp", "sort4": "rlgp", "sort_random": "rlgp", "pick_place3": "rlgp"}
 
 
 def test_every_mobile_problem_has_a_solve_test():
