@@ -15,7 +15,6 @@ least the returned cost.
 """
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
