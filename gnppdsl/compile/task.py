@@ -17,11 +17,14 @@ What the compiler decides here (and why):
   preconditions, a false static comparison, inconsistent effects) are dropped, and so are those
   relaxed reachability from s_0 shows never applicable, with the values no variable can reach
   (`gnppdsl.compile.reachability`: every plan is kept; 80 planar blocks: 6720 -> 400 operators).
+- An operator's cost is its action's `cost` (a float), or its `cost` expression evaluated for
+  the binding from the problem and the scene (`gnppdsl.compile.costs`).
 """
 from __future__ import annotations
 
 from itertools import product
 
+from gnppdsl.compile.costs import ground_costs
 from gnppdsl.compile.ground import MARKER, Binding, bindings, compare_holds, error_at, term_name, var_name
 from gnppdsl.compile.reachability import prune_unreachable
 from gnppdsl.compile.sas import Axiom, Effect, Fact, Operator, PartialState, SASTask, SASVariable
@@ -52,6 +55,7 @@ class _Builder:
         self.index: dict[str, int] = {}
         self.axioms: list[Axiom] = []
         self.aux_cache: dict[tuple, int] = {}
+        self.sources: list[tuple[m.Action, Binding]] = []   # operator i's action and binding
 
     # ---- variables ---------------------------------------------------------------------
     def add_var(self, name: str, values: tuple[str, ...], derived: bool, span=None) -> int:
@@ -189,6 +193,7 @@ class _Builder:
         init = tuple(0 if der else initial[i] for i, der in enumerate(self.derived))
         axioms = sorted(set(self.axioms), key=lambda a: (variables[a.var].axiom_layer, a.var, a.conditions))
         task = SASTask(variables, init, goal, operators, axioms, name=p.name)
+        task = ground_costs(p, task, self.sources)
         return prune_unreachable(task) if self.prune else task
 
     def initial_state(self, marker: int | None) -> dict[int, int]:
@@ -234,6 +239,7 @@ class _Builder:
                 op = self.operator(act, b, marker)
                 if op is not None:
                     ops.append(op)
+                    self.sources.append((act, b))
         return ops
 
     def operator(self, act: m.Action, b: Binding, marker: int | None) -> Operator | None:

@@ -241,14 +241,18 @@ class Action:
 
     `pre` is a conjunction of literals (StateLit may be `!=`, DerivedLit may be negated, Compare
     between parameters). Effects assign state variables only (never derived predicates).
+    `cost` is the cost of every ground action (a float >= 0), unless `cost_expr`, a typed scalar
+    expression of the parameters and the scene (`gnppdsl.ir.resolve_costs`), gives it per ground
+    action when the problem is compiled (`gnppdsl.compile.costs`).
     """
 
     name: str
     params: tuple[TypedParam, ...]
     pre: tuple[Literal, ...]
     effects: tuple[Effect, ...]
-    cost: int = 1
+    cost: float = 1
     span: Span | None = field(**_SPAN)
+    cost_expr: object | None = None
 
 
 # --------------------------------------------------------------------------------------------

@@ -317,7 +317,7 @@ class ActionDecl:
     params: tuple[Param, ...]
     pre: tuple[Lit, ...]
     effects: tuple[EffectAst, ...]
-    cost: ENum | None
+    cost: "ExprAst | None"                 # `cost 2`, `cost 10 + norm(...)`: see ir.resolve_costs
     duplicates: tuple[Name, ...] = ()      # repeated `pre`/`eff`/`cost` keywords (an error)
     span: Span | None = field(**_S)
 

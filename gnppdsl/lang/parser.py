@@ -221,7 +221,7 @@ def _make_transformer(path: str, problems: list):
             return ("eff", c[0], sp(m))
 
         def cost(self, m, c):
-            return ("cost", num(c[0]), sp(m))
+            return ("cost", c[0], sp(m))
 
         def action_decl(self, m, c):
             params = c[1] if len(c) > 1 and isinstance(c[1], _Params) else _Params()

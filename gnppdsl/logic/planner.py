@@ -47,7 +47,7 @@ class Plan:
     operators: tuple[int, ...]
     names: tuple[str, ...]
     states: tuple[State, ...]
-    cost: int
+    cost: float
     shortest: bool = False   # proven: no shorter plan exists under the current constraints
     optimal: bool = False    # proven: no cheaper plan (up to the horizon / of this length)
 

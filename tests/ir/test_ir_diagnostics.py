@@ -558,7 +558,7 @@ def test_bool_combined_with_types(tmp_path):
 
 
 def test_negative_cost(tmp_path):
-    at(check(tmp_path, "action a(g: gripper) { cost 1.5 }\n"), 15, 29, "cost")
+    at(check(tmp_path, "action a(g: gripper) { cost -1.5 }\n"), 15, 29, "cost")
 
 
 def test_bad_waypoints(tmp_path):
@@ -673,3 +673,17 @@ def test_unused_rule_parameter_is_a_warning(tmp_path):
     assert (w.severity, w.kind, w.span.line, w.span.column) == ("warning", "unused", 15, 18)
     assert rep.ok and rep.summary() == "ok: 1 domain checked, 1 warning"
     assert "warning: parameter 'g' of rule 'r' is not used" in rep.render()
+
+
+@pytest.mark.parametrize("cost, col, word", [
+    ("norm(q(g))", 34, "continuous variable 'q'"),
+    ("norm(pos(world(g)))", 38, "world pose"),
+    ("[1, 2]", 29, "R[2]"),
+    ("norm(pos(pose0(g)) - pos(pose0(g))) - 1", None, None),   # not constant: checked when compiled
+])
+def test_cost_expressions(tmp_path, cost, col, word):
+    diags = check(tmp_path, f"action a(g: gripper) {{ cost {cost} }}\n")
+    if col is None:
+        assert not [d for d in diags if d.severity == "error"]
+        return
+    assert word in at(diags, 15, col, "cost").message
