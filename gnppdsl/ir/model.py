@@ -666,7 +666,8 @@ class Problem:
                 -> its declared type
     init        one ground `Assign` per state-variable instance: the loader fills defaults
                 (booleans false, `none` where allowed) and reports any instance left unassigned
-    goal        ground literals (StateLit `=` and DerivedLit)
+    goal        ground literals (StateLit `=` and DerivedLit), and Or / And of them (`a or b`;
+                compiled to a derived goal variable, `gnppdsl.compile.task`)
     settings    domain settings <- problem `solver { }` (apply CLI options with `.merged`)
     relaxations the problem's schedule if it declares one, else the domain's
     scene       the loaded scene (None if the problem names no scene)
@@ -677,7 +678,7 @@ class Problem:
     domain: Domain
     objects: dict[str, str]
     init: tuple[Assign, ...]
-    goal: tuple[StateLit | DerivedLit, ...]
+    goal: tuple["StateLit | DerivedLit | Or | And", ...]
     settings: SolverSettings = SolverSettings()
     relaxations: tuple[Relaxation, ...] = ()
     reachability: tuple[Reachability, ...] = ()

@@ -516,13 +516,13 @@ class FactForall:
 
 @dataclass(frozen=True)
 class InitDecl:
-    lits: tuple[Lit | FactForall, ...]
+    lits: tuple["Lit | FactForall | FOr | FAnd", ...]      # FOr / FAnd: an error (resolver)
     span: Span | None = field(**_S)
 
 
 @dataclass(frozen=True)
 class GoalDecl:
-    lits: tuple[Lit | FactForall, ...]
+    lits: tuple["Lit | FactForall | FOr | FAnd", ...]      # `a or b`, `(a and b) or c`
     span: Span | None = field(**_S)
 
 

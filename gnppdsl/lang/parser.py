@@ -311,6 +311,9 @@ def _make_transformer(path: str, problems: list):
                 items.extend(x.items if isinstance(x, ast.FAnd) else (x,))
             return ast.FAnd(tuple(items), sp(m))
 
+        fact_or = f_or          # `or` / `and` between goal facts: the same AST as in formulas
+        fact_and = f_and
+
         def f_not(self, m, c):
             return ast.FNot(c[0], sp(m))
 

@@ -687,3 +687,22 @@ def test_cost_expressions(tmp_path, cost, col, word):
         assert not [d for d in diags if d.severity == "error"]
         return
     assert word in at(diags, 15, col, "cost").message
+
+
+def test_disjunctive_goal_and_its_misuses(tmp_path):
+    ok = check(tmp_path, problem="""\
+        problem p for d
+        objects { b1, b2 : block  s1 : place  g : gripper }
+        init { parent(b1) = s1  parent(b2) = s1 }
+        goal { parent(b1) = g or (parent(b2) = g and not free(g)), free(g) }
+        """)
+    assert [d for d in ok if d.severity == "error"] == []
+    d = check(tmp_path, problem="""\
+        problem p for d
+        objects { b1, b2 : block  s1 : place  g : gripper }
+        init { parent(b1) = s1 or parent(b1) = g  parent(b2) = s1 }
+        goal { parent(b1) = g or parent(b2) != g }
+        """)
+    assert "no `or`" in at(d, 3, 8, "init", "p.pntc").message
+    at(d, 4, 26, "goal", "p.pntc")
+    assert not [x for x in d if "no value" in x.message]      # no follow-up error for parent(b1)
