@@ -384,6 +384,8 @@ class Rule:
       "transition"  `: p -> p' => ...`  at i = 0..n-1 where p ⊆ s_i and p' ⊆ s_{i+1}
       "always"      `: always => ...`   every step (p is empty)
       "initial"     `: initial => ...`  only step 0 (compiled to a marker variable)
+      "final"       `: final => ...`    only the plan's last step (compiled to a derived
+                    variable "the goal holds", which no operator may be applied in)
     `pre` is p and `post` is p' (empty tuple unless "transition"). Pattern literals are
     positive (`StateLit` with negated False; booleans by value; `DerivedLit` may be negated,
     meaning value false). `where` holds static guards (`Compare`) on the parameters.

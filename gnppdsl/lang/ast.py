@@ -382,7 +382,7 @@ class RuleDecl:
     name: Name
     params: tuple[Param, ...]
     where: tuple[Lit, ...]
-    kind: str                    # "state", "transition", "always", "initial"
+    kind: str                    # "state", "transition", "always", "initial", "final"
     pre: tuple[Lit, ...]
     post: tuple[Lit, ...]
     calls: tuple[TCall, ...]

@@ -467,6 +467,10 @@ def _make_transformer(path: str, problems: list):
         def pat_initial(self, m, c):
             return ("initial", (), (), sp(m))
 
+        def pat_final(self, m, c):
+            # the last state of the plan (compiled to a derived variable: the goal holds)
+            return ("final", (), (), sp(m))
+
         def pat_state(self, m, c):
             return ("state", c[0], (), sp(m))
 
