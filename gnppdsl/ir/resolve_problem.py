@@ -158,6 +158,17 @@ class ProblemResolver:
         if scene is not None:
             self.check_scene_objects(dom, objects, scene, scene_ref_span)
             for rb in reach:
+                if scene.dimension != 3:
+                    # the graph samples IK solutions of a URDF robot: refused here rather than
+                    # when `rlgp` first builds it (gnppdsl.reach.integration)
+                    travels = [h for h in rb.heuristics if h.measure == "travel"]
+                    for x in travels or [rb]:
+                        what = "travel(...) costs come from" if travels else "reachability blocks describe"
+                        self.err(x.span, f"reachability '{rb.name}': {what} a reachability graph, "
+                                 f"which needs a 3-D scene with a URDF robot; scene '{scene.name}' is "
+                                 f"planar", "scene", "drop the block for planar problems, or give "
+                                 "the action a `cost` expression (e.g. a scene distance)")
+                    continue
                 if rb.robot not in scene.robots:
                     self.err(rb.span, f"reachability '{rb.name}': robot '{rb.robot}' is not in the scene",
                              "unknown-name", did_you_mean(rb.robot, scene.robots))

@@ -706,3 +706,27 @@ def test_disjunctive_goal_and_its_misuses(tmp_path):
     assert "no `or`" in at(d, 3, 8, "init", "p.pntc").message
     at(d, 4, 26, "goal", "p.pntc")
     assert not [x for x in d if "no value" in x.message]      # no follow-up error for parent(b1)
+
+
+def test_travel_on_a_planar_scene(tmp_path):
+    scene = """\
+        name: s
+        dimension: 2
+        workspace: [[-1, -1], [1, 1]]
+        robots:
+          g: {kind: planar, home: [0, 0, 0], shape: {circle: 0.03}}
+        objects:
+          s1: {pose: [0.0, 0.0, 0.0]}
+          b1: {shape: {circle: 0.05}, pose: [0.0, 0.0, 0.0]}
+          b2: {shape: {circle: 0.05}, pose: [0.0, 0.0, 0.0]}
+        """
+    d = check(tmp_path, """\
+        action pick(o: block, g: gripper) { pre holding(g) = none  eff holding(g) := o }
+        reachability left {
+          robot = g
+          heuristic pick(o, g) : travel(g, o)
+        }
+        """, problem=PROBLEM.replace("problem p for d\n", 'problem p for d\nscene "s.yaml"\n'),
+        files={"s.yaml": scene})
+    x = at(d, 18, 3, "scene", "domain.pntc")
+    assert "travel" in x.message and "planar" in x.message
