@@ -8,6 +8,8 @@ Downward's optimal A* on the `.sas` file (costs in thousandths, `SASTask.cost_sc
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from itertools import permutations
 
 import pytest
@@ -70,3 +72,17 @@ def test_integer_costs_are_not_scaled(tmp_path):
     task = build_task(load_problem(path))
     assert {op.cost for op in task.operators} == {6.0} and task.cost_scale() == 1
     assert "\n6\nend_operator" in write_sas(task)
+
+
+def test_gnpp_check_grounds_costs_and_locates_a_negative_one(tmp_path):
+    """`gnpp check` evaluates the costs of problems whose domain has cost expressions: a ground
+    value below 0 is a located error (exit 2), without importing numpy or the solvers."""
+    from delivery import DOMAIN
+    path = write(tmp_path, "visited(p1)", DOMAIN.replace("step + norm", "norm").replace(
+        "pos(pose0(b)))", "pos(pose0(b))) - 1.1"))
+    code = ("import sys\nfrom gnppdsl.cli.main import main\n"
+            f"rc = main(['check', {str(tmp_path / 'domain.pntc')!r}, {str(path)!r}])\n"
+            "print(rc, [m for m in ('casadi', 'clingo', 'numpy') if m in sys.modules])\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.stdout.strip().endswith("2 []"), proc.stdout + proc.stderr
+    assert "domain.pntc:12:8: error: the cost of move(r, p0, p1) is" in proc.stderr
