@@ -619,6 +619,12 @@ def _syntax_diagnostic(err, path: str, text: str, reporter: Reporter) -> int:
         hint = _tags_hint(text, getattr(tok, "start_pos", None))
         if hint is not None:
             pass
+        elif tok.type != "$END" and str(tok.value) in ("or", "and"):
+            # `pre a or b`, `: p or q =>`: lists of facts here are conjunctions
+            hint = (f"'{tok.value}' combines facts only in `derived` bodies and goals; here the "
+                    + ("facts are a list (all must hold): for a disjunction declare "
+                       "`derived NAME(...) := a or b` and use NAME(...)" if tok.value == "or"
+                       else "facts are a list separated by `,` (all must hold)"))
         elif tok.type != "$END" and str(tok.value) in keywords() and "NAME" in err.expected:
             hint = (f"'{tok.value}' is a reserved word and cannot be used as a name here"
                     + ("; separate tags with commas" if tok.value in DECL_KEYWORDS else ""))
