@@ -86,3 +86,13 @@ def test_gnpp_check_grounds_costs_and_locates_a_negative_one(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.stdout.strip().endswith("2 []"), proc.stdout + proc.stderr
     assert "domain.pntc:12:8: error: the cost of move(r, p0, p1) is" in proc.stderr
+
+
+def test_cost_bound_in_user_units(tour):
+    """`optimal_plan(cost_bound=B)` (the anytime search's bound) is in the task's units although
+    clasp sees thousandths: just below the optimum no plan, just above it the optimum."""
+    expected = _cheapest_tour(("p1", "p2", "p3"))
+    below = IncrementalPlanner(tour).optimal_plan(4, cost_bound=expected - 0.01)
+    assert below.plan is None and below.status.value == "no plan"
+    above = IncrementalPlanner(tour).optimal_plan(4, cost_bound=expected + 0.01)
+    assert above.plan.cost == pytest.approx(expected, abs=4 * 0.5 / COST_RESOLUTION)
