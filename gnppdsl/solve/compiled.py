@@ -69,8 +69,9 @@ class Compiled:
         return getattr(dom, "name", "domain")
 
 
-def load_and_compile(paths: Sequence[str] | str) -> Compiled:
-    """Load a problem (its domain found next to it, or given first), compile task and factory."""
+def load_and_compile(paths: Sequence[str] | str, instance: int | None = None) -> Compiled:
+    """Load a problem (its domain found next to it, or given first), compile task and factory.
+    `instance`: the randomised instance of that seed (`gnppdsl.ir.instances.draw_instance`)."""
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     from gnppdsl.inputs import SOURCE_SUFFIXES, InputError, check_suffix, read_text
 
@@ -91,6 +92,10 @@ def load_and_compile(paths: Sequence[str] | str) -> Compiled:
         problem = load_problem(prob_path, dom_path)
     else:
         problem = load_problem(paths[0])
+    if instance is not None:
+        from gnppdsl.ir.instances import draw_instance
+
+        problem = draw_instance(problem, instance)
     return compile_problem(problem)
 
 
