@@ -32,7 +32,6 @@ box `size` full extents, a robot's `base` its world placement, `locked` joints f
 from __future__ import annotations
 
 import json
-import os
 import re
 import sys
 from dataclasses import dataclass, field
