@@ -75,6 +75,9 @@ class SolveOptions:
                                      # pairs it found near as factors and is solved again
                                      # (`gnppdsl.solve.coverage`); False: it ends the solve as
                                      # verification_failed (every solution is verified either way)
+    anytime: float = 0.0             # seconds after the first solution spent on cheaper logical
+                                     # plans under a cost bound (`gnppdsl.solve.anytime`; 0: off),
+                                     # within the time limit
 
     @staticmethod
     def from_settings(settings: SolverSettings | None = None, **overrides: Any) -> "SolveOptions":
@@ -83,7 +86,7 @@ class SolveOptions:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
                          "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "planner",
-                         "optimise"):
+                         "optimise", "anytime"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -101,7 +104,7 @@ class SolveOptions:
             raise UserError("the time limit must be positive")
         from gnppdsl.ir.model import setting_problem
 
-        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime"):
             value = getattr(self, key, None)        # the ranges of the `solver { }` block
             problem = setting_problem(key, value) if value is not None else None
             if problem is not None:
@@ -112,6 +115,9 @@ class SolveOptions:
             raise UserError(f"planner fd cannot serve algorithm {self.algorithm}: "
                             + ("One-way enumerates plans in order of length" if self.algorithm == "oneway"
                                else "R-LGP minimises travel costs") + " (use planner sequential or auto)")
+        if self.anytime and self.algorithm == "oneway":
+            raise UserError("anytime needs the gnpp or rlgp algorithm (One-way learns no conflicts "
+                            "to bound its plans)")
         if self.order not in ORDERS:
             raise UserError(f"order '{self.order}' is not available (use {', '.join(ORDERS[:-1])} "
                             f"or {ORDERS[-1]})")
