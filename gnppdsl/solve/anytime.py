@@ -152,7 +152,7 @@ class Anytime(Coverage):
                 if res.status is Status.NO_PLAN:
                     if bound is not None:
                         report.proved_optimal, report.scope = True, scope
-                        report.stopped = f"no plan of {scope} has a lower bound below {report.cost:.6g}"
+                        report.stopped = f"no logical plan ({scope}) has a lower bound below {report.cost:.6g}"
                     else:
                         report.stopped = f"every plan of {scope} evaluated (objective without a known lower bound)"
                     break
