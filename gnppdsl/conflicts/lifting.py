@@ -24,7 +24,7 @@ renaming π of the conflict's objects is checked by the factory itself:
 A renaming whose image differs in any number (another initial pose, another pad position,
 another arm base) fails step 2 and yields nothing: lifting is conservative by construction.
 
-Cost: one factory call on a window of L + 3 states per candidate renaming (single swaps of
+Cost: one factory call (`rule_factors`: the renamed rules only) on a window of L + 3 states per candidate renaming (single swaps of
 one conflict object with each object of its type and geometry, then their combinations, at
 most `limit`), no NLP.
 """
@@ -135,9 +135,9 @@ class Lifter:
                shifted: list[FactorInstance], pattern) -> Conflict | None:
         perm = _complete(mapping)
         renamed = [self._rename_state(s, perm) for s in window]
-        produced = self.factory.factors(renamed)
-        wanted = {(f.rule, f.template, tuple((k, perm.get(o, o)) for k, o in f.bindings), f.step) for f in shifted}
-        candidates = [f for f in produced if (f.rule, f.template, f.bindings, f.step) in wanted]
+        wanted = {(f.rule, tuple((k, perm.get(o, o)) for k, o in f.bindings), f.step) for f in shifted}
+        templates = {f.template for f in shifted}
+        candidates = [f for f in self.factory.rule_factors(renamed, sorted(wanted)) if f.template in templates]
         if len(candidates) < len(shifted):
             return None
         target = anonymous_graph(candidates, self.object_key)
