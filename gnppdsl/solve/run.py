@@ -179,7 +179,7 @@ class Run(ReachabilityCosts):
         instances = [seq]
         if self.lifter is not None:
             instances = self.lifter.instances(plan.states, sub_factors)
-        self.stats.lift_time += time.perf_counter() - t0
+            self.stats.lift_time += time.perf_counter() - t0
         known = seq in set(self.planner.conflicts)
         new = self.planner.add_lifted(instances)
         if known or not new:
