@@ -33,7 +33,8 @@ install liblapack3 libglut3.12`). Without it the script prints so and exits 0. r
 `KOMO.initWithWaypoints` (and so the helper's `sub_motion`) segfaults in 0.4.2; the motions are
 initialised with `initWithPath` (the same straight line gnpp starts from).
 
-    python benchmarks/bench_komo.py [--seeds 20] [--no-e2e] [--only gnpp|komo]
+    python benchmarks/bench_komo.py [--seeds 20] [--no-e2e] [--only gnpp|komo] [--unshared]
+        [--against DIR]   # DIR: another gnppdsl tree, e.g. `git archive main | tar -x -C DIR`
 """
 from __future__ import annotations
 
@@ -77,10 +78,11 @@ def perturbation(seed: int) -> tuple[np.ndarray, tuple[float, float]]:
 def write_problem(directory: Path, seed: int) -> Path:
     """The pick-and-place problem of one seed for gnpp: the Lab scene with one arm."""
     lab = yaml.safe_load((LAB / "lab.yaml").read_text())
+    setting = yaml.safe_load((LAB / lab["include"]).read_text())    # robots, table, pads
     q0, (bx, by) = perturbation(seed)
-    arm = dict(lab["robots"]["left_arm"], home=[float(x) for x in q0])
-    objs = lab["objects"]
-    scene = {"name": "pick_place", "dimension": 3, "workspace": lab["workspace"],
+    arm = dict(setting["robots"]["left_arm"], home=[float(x) for x in q0])
+    objs = {**setting["objects"], **lab["objects"]}
+    scene = {"name": "pick_place", "dimension": 3, "workspace": setting["workspace"],
              "robots": {"arm": arm},
              "objects": {"table": objs["table"], "pad": objs["pad_c"],
                          "b": dict(objs["b1"], pose={"xyz": [float(bx), float(by), BLOCK[2]]})},
@@ -149,6 +151,43 @@ class Gnpp:
             out["path_ok"].append(rp.feasible)
             out["path_res"].append(rp.max_violation)
         return out
+
+
+class GnppWorker:
+    """`Gnpp` in a child process whose gnppdsl is another source tree (`--against DIR`: e.g. main
+    before a change, `git archive main | tar -x -C DIR`), so that two versions of the engine run
+    side by side in one run, alternating seed by seed. The child measures its own CPU time per
+    NLP exactly as `Gnpp` does here (it runs this file's `Gnpp`, importing gnppdsl from DIR)."""
+
+    def __init__(self, tree: Path) -> None:
+        env = dict(os.environ, PYTHONPATH=str(tree))
+        self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker"],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+
+    def solve(self, problem: Path, seed: int) -> dict:
+        self.proc.stdin.write(json.dumps([str(problem), seed]) + "\n")
+        self.proc.stdin.flush()
+        line = self.proc.stdout.readline()
+        if not line:
+            raise RuntimeError("bench_komo: the --against worker died")
+        return json.loads(line)
+
+    def close(self) -> None:
+        self.proc.stdin.close()
+        self.proc.wait()
+
+
+def worker_main() -> int:
+    """The `--worker` loop: one [problem, seed] JSON line in, `Gnpp.solve`'s dict out."""
+    import gnppdsl
+    sys.stderr.write(f"bench_komo worker: gnppdsl from {Path(gnppdsl.__file__).parents[1]}\n")
+    g = Gnpp()
+    for line in sys.stdin:
+        path, seed = json.loads(line)
+        r = g.solve(Path(path), seed)
+        print(json.dumps({k: (bool(v) if isinstance(v, np.bool_) else v) for k, v in r.items()},
+                         default=lambda x: x.item() if hasattr(x, "item") else str(x)), flush=True)
+    return 0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -257,10 +296,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--unshared", action="store_true",
                     help="also gnpp with every NLP assembled anew (SolverOptions.shared_assembly "
                          "off: the engine before nlp/shape_cache.py), alternating with the others")
+    ap.add_argument("--against", type=Path, default=None, metavar="DIR",
+                    help="also gnpp from the gnppdsl source tree DIR (e.g. main before a change), "
+                         "NLPs in a worker process and end to end, alternating with this tree")
     ap.add_argument("--komo-process", type=int, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.komo_process is not None:
         return komo_main(args.komo_process)
+    if args.worker:
+        return worker_main()
     scratch = Path(tempfile.mkdtemp(prefix="bench_komo_"))
     cwd = os.getcwd()
     os.chdir(scratch)                      # rai writes z.log.global into the working directory
@@ -276,6 +321,8 @@ def main(argv: list[str] | None = None) -> int:
     sides = [s for s in ("gnpp", "komo") if args.only in (None, s)]
     if args.unshared and "gnpp" in sides:
         sides.insert(1, "gnpp-unshared")
+    if args.against is not None and "gnpp" in sides:
+        sides.insert(1, "gnpp-against")
     import importlib.util
 
     from gnppdsl.geometry import native
@@ -288,15 +335,20 @@ def main(argv: list[str] | None = None) -> int:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     try:
         engines = {"gnpp": Gnpp(), "gnpp-unshared": Gnpp({"shared_assembly": False})}
+        if "gnpp-against" in sides:
+            engines["gnpp-against"] = GnppWorker(args.against.resolve())
+            print(f"gnpp-against: gnppdsl from {args.against.resolve()}")
         rows: dict[str, list[dict]] = {s: [] for s in sides}
         warm = {"gnpp": lambda: engines["gnpp"].solve(write_problem(scratch / "warm", 1000), 1000),
+                "gnpp-against": lambda: engines["gnpp-against"].solve(write_problem(scratch / "warm", 1000), 1000),
                 "gnpp-unshared": lambda: engines["gnpp-unshared"].solve(write_problem(scratch / "warm", 1000), 1000),
                 "komo": lambda: komo_solve(ry, 1000)}
         def end_to_end(s: str, problem: Path, seed: int, r: dict) -> None:
             if s.startswith("gnpp"):
                 cmd = [sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB / "domain.pntc"),
                        str(problem), "--quiet", "--no-jit", "--json", str(problem.parent / "out.json")]
-                r["e2e"], _ = child_cpu(cmd, scratch, env)
+                tree = args.against.resolve() if s == "gnpp-against" else ROOT
+                r["e2e"], _ = child_cpu(cmd, scratch, dict(env, PYTHONPATH=str(tree)))
                 res = json.loads((problem.parent / "out.json").read_text())
                 r["e2e_ok"] = bool(res.get("solved"))
                 r["e2e_solve"] = float(res.get("stats", {}).get("cpu_time", float("nan")))
@@ -338,10 +390,11 @@ def main(argv: list[str] | None = None) -> int:
     row("both paths", lambda r: [sum(r["path"])] if len(r["path"]) == 2 else [], "median {:.1f} ms")
     if not args.no_e2e:
         row("end to end", lambda r: [r["e2e"]] if "e2e" in r else [], "median {:.2f} s CPU")
-        if "gnpp" in sides:
-            over = [r["e2e"] - r["e2e_solve"] for r in rows["gnpp"]]
-            print(f"{'gnpp overhead':14s}{'':>0s}  process CPU beyond the solve's cpu_time: "
-                  f"median {_med(over):.2f} s")
+        for s in ("gnpp", "gnpp-against"):
+            if s in sides:
+                over = [r["e2e"] - r["e2e_solve"] for r in rows[s]]
+                print(f"{s + ' overhead':14s}  process CPU beyond the solve's cpu_time: "
+                      f"median {_med(over):.2f} s")
     for s in sides:
         rs = rows[s]
         kf = sum(r["keyframe_ok"] for r in rs)
@@ -356,6 +409,13 @@ def main(argv: list[str] | None = None) -> int:
             a = _med([x for r in rows["gnpp"] for x in get(r)])
             b = _med([x for r in rows["gnpp-unshared"] for x in get(r)])
             print(f"ratio gnpp/gnpp-unshared {name} NLP: {a / b:.2f}")
+    if "gnpp-against" in sides:
+        engines["gnpp-against"].close()
+        for name, get in (("keyframe", lambda r: [r["keyframe"]]), ("path", lambda r: r["path"]),
+                          ("end to end", lambda r: [r["e2e"]] if "e2e" in r else [])):
+            a = _med([x for r in rows["gnpp"] for x in get(r)])
+            b = _med([x for r in rows["gnpp-against"] for x in get(r)])
+            print(f"ratio gnpp/gnpp-against {name}: {a / b:.2f}")
     if "gnpp" in sides and "komo" in sides:
         for name, get in (("keyframe", lambda r: [r["keyframe"]]), ("path", lambda r: r["path"])):
             a = _med([x for r in rows["gnpp"] for x in get(r)])

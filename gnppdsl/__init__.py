@@ -6,8 +6,9 @@ geometry sits under nlp; reach is R-LGP.
 The public API (internal modules may change, these names and signatures do not; the `gnpp`
 command line is built on exactly them):
 
-    load_and_compile(paths) -> Compiled
-        a problem file (its domain found next to it), or [domain, problem] in either order
+    load_and_compile(paths, instance=None) -> Compiled
+        a problem file (its domain found next to it), or [domain, problem] in either order;
+        `instance=K`: its randomised instance K (scene `random_xy` ranges drawn with seed K)
     SolveOptions(algorithm="gnpp", switches="trn", time_limit=60.0, seed=0, ...)
         SolveOptions.from_settings(problem.settings, **overrides): the problem's `solver { }`
         block with overrides (None keeps the setting)

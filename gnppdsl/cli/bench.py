@@ -26,7 +26,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="problem files or directories of them (default: examples/planar)")
     parser.add_argument("--algorithms", default=DEFAULT_ALGORITHMS,
                         help=f"comma-separated: oneway, gnpp, gnpp_<switches>, rlgp[_<switches>] (default: {DEFAULT_ALGORITHMS})")
-    parser.add_argument("--seeds", type=int, default=3, help="runs per algorithm and problem (seeds 0..N-1)")
+    parser.add_argument("--seeds", type=int, default=None,
+                        help="runs per algorithm and problem (seeds 0..N-1; default 3, with --instances 1)")
+    parser.add_argument("--instances", type=int, default=None, metavar="N",
+                        help="randomised instances per problem: the scene's `random_xy` objects drawn "
+                             "with seeds S..S+N-1 (--seed S; docs/scene.md); every solution is verified")
+    parser.add_argument("--seed", type=int, default=0, metavar="S",
+                        help="seed of the first randomised instance (with --instances; default 0)")
+    parser.add_argument("--anytime", type=float, default=None, metavar="SECONDS",
+                        help="each run looks this long for cheaper logical plans after its first "
+                             "solution (`gnpp solve --anytime`)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="seconds per run")
     parser.add_argument("--max-horizon", type=int, default=None, metavar="H", help="longest plan to try")
     add_order_argument(parser)
@@ -130,9 +139,10 @@ def format_table(problems: list[str], specs: list[AlgorithmSpec], rows: list[dic
     return "\n".join(out)
 
 
-_INT_FIELDS = ("seed", "nlp_solves", "ipopt_runs", "plans", "conflicts", "db_feasible_hits",
+_INT_FIELDS = ("seed", "instance", "steps", "nlp_solves", "ipopt_runs", "plans", "conflicts", "db_feasible_hits",
                "db_infeasible_hits", "reused_solutions", "N0", "N", "kernels_native", "kernels_compiled")
-_FLOAT_FIELDS = ("nlp_time", "logic_time", "total_time", "cpu_time", "max_violation")
+_FLOAT_FIELDS = ("nlp_time", "logic_time", "total_time", "cpu_time", "max_violation", "cost", "plan_cost",
+                 "base_path_length")
 
 
 def typed(row: dict) -> dict:
@@ -148,11 +158,43 @@ def typed(row: dict) -> dict:
     return out
 
 
+def format_family_table(problems: list[str], specs: list[AlgorithmSpec], rows: list[dict]) -> str:
+    """Paper 002's measures per problem family and algorithm over its randomised instances:
+    success (solved and verified), CPU seconds, base path length, steps and cost (mean±std over
+    the solved runs), and the base path on the instances every algorithm solved (a fair
+    comparison of path lengths)."""
+    out = ["problem           algorithm     succ     cpu[s]        base[m]       steps       cost         "
+           "base[m] where all solved"]
+    for p in problems:
+        runs = [r for r in rows if r["problem"] == p]
+        ok_by = {s.label: {r.get("instance"): r for r in runs if r["algorithm"] == s.label and r["solved"]}
+                 for s in specs}
+        common = set.intersection(*(set(v) for v in ok_by.values())) if ok_by else set()
+        for s in specs:
+            rs = [r for r in runs if r["algorithm"] == s.label]
+            ok = list(ok_by[s.label].values())
+            base = [r["base_path_length"] for r in ok if r.get("base_path_length") is not None]
+            both = [ok_by[s.label][k]["base_path_length"] for k in sorted(common, key=str)
+                    if ok_by[s.label][k].get("base_path_length") is not None]
+            out.append(f"{p:17s} {s.title:13s} {len(ok):>3}/{len(rs):<3}  "
+                       f"{_cell([r.get('cpu_time') or 0.0 for r in ok], '.2f'):13s} {_cell(base, '.2f'):13s} "
+                       f"{_cell([r['steps'] for r in ok if r.get('steps') is not None], '.1f'):11s} "
+                       f"{_cell([r['cost'] for r in ok if r.get('cost') is not None], '.3f'):12s} "
+                       f"{_cell(both, '.2f')} ({len(common)} instances)")
+    return "\n".join(out)
+
+
 def _check_numbers(args: argparse.Namespace) -> None:
     from gnppdsl.errors import UserError
 
+    if args.seeds is None:
+        args.seeds = 1 if args.instances else 3
     if args.seeds < 1:
         raise UserError("--seeds must be >= 1")
+    if args.instances is not None and args.instances < 1:
+        raise UserError("--instances must be >= 1")
+    if not 0 <= args.seed <= 2**32 - 1:
+        raise UserError(f"--seed {args.seed}: is out of range [0, {2**32 - 1:,}]")
     if not math.isfinite(args.time_limit) or args.time_limit <= 0:
         raise UserError("--time-limit must be positive and finite")
     if args.workers < 1:
@@ -178,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
     import contextlib
 
     from gnppdsl.cli.status import BenchStatus
-    from gnppdsl.cli.sweep import CsvJournal, RunSettings, grid, run_on_ray, run_serial
+    from gnppdsl.cli.sweep import CsvJournal, RunSettings, grid, row_key, run_on_ray, run_serial
 
     specs = parse_algorithms(args.algorithms)
     _check_numbers(args)
@@ -188,13 +230,14 @@ def run(args: argparse.Namespace) -> int:
     files = find_problems(args.paths)
     settings = RunSettings(time_limit=args.time_limit, max_horizon=args.max_horizon, order=args.order,
                            jit=bool(args.jit) if args.jit is not None else False,
-                           distance_curvature=args.distance_curvature, run_timeout=args.run_timeout,
-                           memory_mb=args.memory_limit)
-    cells = list(grid(files, [s.label for s in specs], args.seeds))
+                           distance_curvature=args.distance_curvature, anytime=args.anytime,
+                           run_timeout=args.run_timeout, memory_mb=args.memory_limit)
+    instances = range(args.seed, args.seed + args.instances) if args.instances else (None,)
+    cells = list(grid(files, [s.label for s in specs], args.seeds, instances))
     done = journal.done() if journal else set()
     todo = [c for c in cells if c.key not in done]
     wanted = {c.key for c in cells}
-    rows = [typed(r) for r in (journal.rows if journal else []) if (r["file"], r["algorithm"], str(r["seed"])) in wanted]
+    rows = [typed(r) for r in (journal.rows if journal else []) if row_key(r) in wanted]
     if journal and rows:
         print(f"gnpp bench: resuming {args.csv}: {len(rows)} of {len(cells)} runs already there",
               file=sys.stderr)
@@ -207,7 +250,8 @@ def run(args: argparse.Namespace) -> int:
             journal.append(row)
         rows.append(typed({k: row.get(k) for k in row}))
         if status is not None:
-            status.print_row(f"{row['problem']:16s} {row['algorithm']:10s} seed {row['seed']}: {row['status']:14s} "
+            inst = "" if row.get("instance") in (None, "") else f" instance {row['instance']}"
+            status.print_row(f"{row['problem']:16s} {row['algorithm']:10s}{inst} seed {row['seed']}: {row['status']:14s} "
                              f"NLP {row.get('nlp_solves') or 0:4} cpu {float(row.get('cpu_time') or 0):6.2f} s "
                              f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}")
 
@@ -228,7 +272,7 @@ def run(args: argparse.Namespace) -> int:
         if journal:
             journal.close()
     order = {c.key: i for i, c in enumerate(cells)}
-    rows.sort(key=lambda r: order.get((r["file"], r["algorithm"], str(r["seed"])), len(order)))
+    rows.sort(key=lambda r: order.get(row_key(r), len(order)))
     names: list[str] = []
     for r in rows:
         if r["status"] != "error" and r["problem"] not in names:
@@ -237,6 +281,8 @@ def run(args: argparse.Namespace) -> int:
         from gnppdsl.errors import UserError
         raise UserError("gnpp bench: no problem could be loaded")
     print(format_table(names, specs, rows))
+    if args.instances:
+        print(format_family_table(names, specs, rows))
     from gnppdsl.geometry import native
     print(f"distance queries: {native.describe()}")
     if skipped:

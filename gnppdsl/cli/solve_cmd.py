@@ -56,6 +56,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-optimise", dest="optimise", action="store_false", default=None,
                         help="return the first feasible solution without minimising the domain's "
                              "`minimize` terms")
+    parser.add_argument("--instance", type=int, default=None, metavar="K",
+                        help="solve randomised instance K of the problem's family: the scene's "
+                             "`random_xy` objects drawn with seed K (docs/scene.md)")
+    parser.add_argument("--anytime", type=float, default=None, metavar="SECONDS",
+                        help="after the first solution, look this long (within --time-limit) for "
+                             "cheaper logical plans under a cost bound (action costs + a lower bound "
+                             "of the objective); the result says whether the cost was proved optimal")
 
 
 #: seconds the hard alarm (`gnppdsl.interrupt.arm_time_limit`) waits after the loop's own
@@ -91,13 +98,13 @@ def _run(args: argparse.Namespace, start: float) -> int:
     compiled = None
     try:
         with interrupt.interruptible():
-            compiled = gnppdsl.load_and_compile(args.paths)
+            compiled = gnppdsl.load_and_compile(args.paths, instance=args.instance)
             options = gnppdsl.SolveOptions.from_settings(
                 compiled.problem.settings,
                 algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
                 seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
                 order=args.order, jit=args.jit, distance_curvature=args.distance_curvature, planner=args.planner,
-                active_set=args.active_set, optimise=args.optimise,
+                active_set=args.active_set, optimise=args.optimise, anytime=args.anytime,
             )
             limit = options.time_limit
             left = limit - (time.monotonic() - start)

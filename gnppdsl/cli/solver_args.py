@@ -47,7 +47,10 @@ def check_ranges(args: argparse.Namespace) -> None:
     time limit or a tolerance of 1e3 are errors naming the option, exit 2."""
     from gnppdsl.errors import UserError
 
-    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+    instance = getattr(args, "instance", None)
+    if instance is not None and not 0 <= instance <= 2**32 - 1:
+        raise UserError(f"--instance {instance}: is out of range [0, {2**32 - 1:,}]")
+    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime"):
         value = getattr(args, key, None)
         if value is None:
             continue

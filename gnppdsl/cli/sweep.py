@@ -32,9 +32,10 @@ from typing import Callable, Iterable, Iterator
 
 from gnppdsl.errors import UserError
 
-CSV_FIELDS = ("problem", "file", "algorithm", "seed", "status", "solved", "nlp_solves", "ipopt_runs",
-              "nlp_time", "logic_time", "total_time", "cpu_time", "plans", "conflicts", "db_feasible_hits",
-              "db_infeasible_hits", "reused_solutions", "N0", "N", "max_violation", "kernels_native",
+CSV_FIELDS = ("problem", "file", "algorithm", "instance", "seed", "status", "solved", "verified",
+              "nlp_solves", "ipopt_runs", "nlp_time", "logic_time", "total_time", "cpu_time", "plans",
+              "conflicts", "db_feasible_hits", "db_infeasible_hits", "reused_solutions", "N0", "N", "steps",
+              "cost", "plan_cost", "proved_optimal", "base_path_length", "max_violation", "kernels_native",
               "kernels_compiled", "message")
 
 # statuses a run can end with besides the solver's own (solved, no_plan, timeout, ...)
@@ -52,6 +53,7 @@ class RunSettings:
     order: str | None = None
     jit: bool = False
     distance_curvature: bool | None = None
+    anytime: float | None = None          # seconds of the anytime phase (`--anytime`)
     run_timeout: float | None = None      # wall-clock cap of an isolated run (None: derived)
     memory_mb: int | None = None          # address-space cap of an isolated run (None: none)
 
@@ -65,30 +67,39 @@ class RunSettings:
 
 @dataclass(frozen=True)
 class Cell:
-    """One run of the grid: a problem file, an algorithm label (`gnpp_trn`, `oneway`), a seed."""
+    """One run of the grid: a problem file, an algorithm label (`gnpp_trn`, `oneway`), a seed,
+    and the randomised instance of the problem (None: its scene as written)."""
     file: str
     algorithm: str
     seed: int
+    instance: int | None = None
 
     @property
-    def key(self) -> tuple[str, str, str]:
-        return (self.file, self.algorithm, str(self.seed))
+    def key(self) -> tuple[str, str, str, str]:
+        return (self.file, self.algorithm, str(self.seed), "" if self.instance is None else str(self.instance))
 
 
 def failure_row(cell: Cell, status: str, message: str, problem: str = "") -> dict:
     """A row for a run that produced no solver result (refused, killed, crashed)."""
     row = {k: "" for k in CSV_FIELDS}
     row.update(problem=problem or Path(cell.file).stem, file=cell.file, algorithm=cell.algorithm,
-               seed=cell.seed, status=status, solved=False, message=message)
+               instance=cell.instance, seed=cell.seed, status=status, solved=False, message=message)
     return row
 
 
 def result_row(cell: Cell, res) -> dict:
     """The CSV row of a finished solve (`gnppdsl.solve.result.Result`)."""
     s = res.stats
+    bases = [v.get("base") for v in res.path_length.values() if v.get("base") is not None]
+    anytime = res.anytime or {}
     return {
-        "problem": res.problem, "file": cell.file, "algorithm": cell.algorithm, "seed": cell.seed,
-        "status": res.status, "solved": res.solved, "nlp_solves": s.nlp_solves, "ipopt_runs": s.ipopt_runs,
+        "problem": res.problem, "file": cell.file, "algorithm": cell.algorithm, "instance": cell.instance,
+        "seed": cell.seed, "status": res.status, "solved": res.solved,
+        "verified": None if res.verification is None else bool(res.verification.get("ok")),
+        "steps": s.N, "cost": anytime.get("cost", s.cost), "plan_cost": s.plan_cost,
+        "proved_optimal": anytime.get("proved_optimal"),
+        "base_path_length": round(sum(bases), 4) if bases else None,
+        "nlp_solves": s.nlp_solves, "ipopt_runs": s.ipopt_runs,
         "nlp_time": round(s.nlp_time, 4), "logic_time": round(s.logic_time, 4),
         "total_time": round(s.total_time, 4), "cpu_time": round(s.cpu_time, 4), "plans": s.plans,
         "conflicts": s.conflicts, "db_feasible_hits": s.db_feasible_hits,
@@ -138,8 +149,8 @@ class CsvJournal:
         self.rows = [dict(r) for r in reader if None not in r.values()]
         self._truncate_to = len(complete) if len(complete) != len(data) else None
 
-    def done(self) -> set[tuple[str, str, str]]:
-        return {(r["file"], r["algorithm"], str(r["seed"])) for r in self.rows}
+    def done(self) -> set[tuple[str, str, str, str]]:
+        return {row_key(r) for r in self.rows}
 
     def open(self) -> "CsvJournal":
         flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | getattr(os, "O_NOFOLLOW", 0)
@@ -172,6 +183,12 @@ class CsvJournal:
             self._fd = None
 
 
+def row_key(row: dict) -> tuple[str, str, str, str]:
+    """The `Cell.key` a CSV row (or a fresh row) belongs to."""
+    inst = row.get("instance")
+    return (row["file"], row["algorithm"], str(row["seed"]), "" if inst in (None, "") else str(inst))
+
+
 # ------------------------------------------------------------------ running one cell
 
 def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
@@ -182,11 +199,12 @@ def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
     try:
         spec = parse_algorithms(cell.algorithm)[0]
         if compiled is None:
-            compiled = gnppdsl.load_and_compile([cell.file])
+            compiled = gnppdsl.load_and_compile([cell.file], instance=cell.instance)
         options = gnppdsl.SolveOptions.from_settings(
             compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
             time_limit=settings.time_limit, seed=cell.seed, max_horizon=settings.max_horizon,
             order=settings.order, jit=settings.jit, distance_curvature=settings.distance_curvature,
+            anytime=settings.anytime,
         )
         # every run compiles its own templates: runs share nothing, so no algorithm or seed is
         # timed with the templates an earlier one compiled
@@ -236,15 +254,15 @@ def solve_cell_isolated(cell: Cell, settings: RunSettings) -> dict:
 
 def run_serial(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict], None],
                on_error: Callable[[str, UserError], None]) -> None:
-    """Every cell in this process, each problem loaded and compiled once (no Ray needed)."""
+    """Every cell in this process, each problem (instance) loaded and compiled once (no Ray needed)."""
     import gnppdsl
 
-    by_file: dict[str, list[Cell]] = {}
+    by_file: dict[tuple[str, int | None], list[Cell]] = {}
     for c in cells:
-        by_file.setdefault(c.file, []).append(c)
-    for file, group in by_file.items():
+        by_file.setdefault((c.file, c.instance), []).append(c)
+    for (file, instance), group in by_file.items():
         try:
-            compiled = gnppdsl.load_and_compile([file])
+            compiled = gnppdsl.load_and_compile([file], instance=instance)
         except UserError as err:            # one broken problem does not stop the benchmark
             on_error(file, err)
             for c in group:
@@ -290,10 +308,12 @@ def run_on_ray(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict]
             ray.shutdown()
 
 
-def grid(files: Iterable[Path], labels: Iterable[str], seeds: int) -> Iterator[Cell]:
-    """Cells in the order of the table: problem, then algorithm, then seed."""
-    labels = list(labels)
+def grid(files: Iterable[Path], labels: Iterable[str], seeds: int,
+         instances: Iterable[int | None] = (None,)) -> Iterator[Cell]:
+    """Cells in the order of the table: problem, then instance, then algorithm, then seed."""
+    labels, instances = list(labels), list(instances)
     for f in files:
-        for a in labels:
-            for s in range(seeds):
-                yield Cell(str(f), a, s)
+        for k in instances:
+            for a in labels:
+                for s in range(seeds):
+                    yield Cell(str(f), a, s, k)

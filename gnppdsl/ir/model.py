@@ -461,6 +461,8 @@ class SolverSettings:
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
                 in SQP trajectory optimisers (see `gnppdsl.nlp.feasibility.SolverOptions`)
     optimise    minimise the domain's `minimize` terms from the first feasible solution (true)
+    anytime     seconds to look for cheaper logical plans after the first solution (0: off;
+                `gnppdsl.solve.anytime`)
     """
 
     algorithm: str = "gnpp"
@@ -478,6 +480,7 @@ class SolverSettings:
     distance_curvature: bool = True
     planner: str = "auto"
     optimise: bool = True
+    anytime: float = 0.0
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -488,6 +491,7 @@ SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
     "order": str, "jit": bool, "distance_curvature": bool, "planner": str, "optimise": bool,
+    "anytime": float,
 }
 
 #: accepted ranges of the numeric solver settings and their command-line twins (inclusive).
@@ -496,7 +500,7 @@ SOLVER_FIELDS: dict[str, type] = {
 #: returned a violation of 0.5); a seed must fit numpy's 32-bit generator seed.
 SETTING_RANGES: dict[str, tuple[float, float]] = {
     "tolerance": (1e-10, 1e-2), "time_limit": (1e-6, 1e7), "seed": (0, 2**32 - 1),
-    "waypoints": (2, 10_000), "max_horizon": (1, 10_000), "max_iter": (1, 10_000_000),
+    "waypoints": (2, 10_000), "max_horizon": (1, 10_000), "max_iter": (1, 10_000_000), "anytime": (0, 1e7),
 }
 
 

@@ -334,16 +334,22 @@ class IncrementalPlanner(LearnedConstraints):
             self._cache_key = (result.horizon, len(self.conflicts))
         return result
 
-    def optimal_plan(self, horizon: int, time_limit: float | None = None) -> PlanResult:
+    def optimal_plan(self, horizon: int, time_limit: float | None = None,
+                     cost_bound: int | None = None) -> PlanResult:
         """The cheapest plan of length <= `horizon` (operator costs + pair costs).
 
         `plan.optimal` says whether clingo proved optimality before the time limit; a plan
-        found before the limit is returned even when not proven.
+        found before the limit is returned even when not proven. `cost_bound` admits only
+        plans of cost <= the bound (clasp's initial optimisation bound, `--opt-mode=opt,B`):
+        NO_PLAN then proves that no plan of length <= `horizon` costs that little (the anytime
+        search of `gnppdsl.solve.anytime` reads it as its proof of optimality).
         """
         start = time.perf_counter()
         deadline = self._deadline(time_limit)
         if self._extend_to(horizon, deadline):
             self._set_externals(query=horizon, cut=False, idle=True, minimize=True)
+            if cost_bound is not None:
+                self._ctl.configuration.solve.opt_mode = f"opt,{int(cost_bound)}"
             status, found, proven = self._solve(deadline)
         else:
             status, found, proven = Status.TIMEOUT, [], False
@@ -357,7 +363,8 @@ class IncrementalPlanner(LearnedConstraints):
             return PlanResult(Status.TIMEOUT, None, horizon, elapsed,
                               f"time limit of {time_limit:g} s reached before any plan of length "
                               f"<= {horizon} was found for task {self.task.name}")
-        return PlanResult(Status.NO_PLAN, None, horizon, elapsed, self._no_plan_message(horizon))
+        bound = "" if cost_bound is None else f" with cost <= {cost_bound}"
+        return PlanResult(Status.NO_PLAN, None, horizon, elapsed, self._no_plan_message(horizon) + bound)
 
     # ---- messages ----------------------------------------------------------------------
     def _no_plan_message(self, H: int) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Geometry
 from gnppdsl.nlp.lowering import (BodyError, BodyLowering, RowGroup, SlotSignature, constraint_rows,
-                                  lift_constants, map_objs, row_groups, uses)
+                                  lift_constants, row_groups, structure_key, uses)
 
 
 @dataclass(frozen=True)
@@ -341,12 +341,15 @@ class BodyCompiler:
         return key
 
     def _compile(self, factor: FactorInstance, sigs: tuple) -> tuple[CompiledBody, np.ndarray]:
-        key_body, params = lift_constants(factor.body)
         # object and robot names by what their geometry depends on (`structure_key`): bodies
         # that differ only in the name of a same-shaped block share one Function
-        key = (factor.template, map_objs(key_body, self._structure_of), sigs)
+        skey, params = structure_key(factor.body, self._structure_of)
+        key = (factor.template, skey, sigs)
         cb = self._cache.get(key)
         if cb is None:
+            key_body, lifted = lift_constants(factor.body)
+            if lifted != params:      # the Function's parameters must be the key's
+                raise RuntimeError(f"{factor.label}: structure_key and lift_constants disagree")
             try:
                 cb = self._build(factor.template, key_body, sigs, len(params))
             except BodyError as err:

@@ -191,8 +191,15 @@ def warmstart_waypoints(graph: ReachabilityGraph, q_start, q_goal, n_waypoints: 
     evenly by joint-space arc length; row 0 is q_start and the last row q_goal, matching the
     `boundary` template (path[0] = q, path[n-1] = q'). If the graph has no path between them,
     the straight joint-space line (what the NLP would start from without the graph)."""
+    return graph_waypoints(graph, q_start, q_goal, n_waypoints)[0]
+
+
+def graph_waypoints(graph: ReachabilityGraph, q_start, q_goal, n_waypoints: int) -> tuple[np.ndarray, bool]:
+    """`warmstart_waypoints` and whether they follow a graph path (False: the straight line),
+    for the statistics that show getWaypoints at work (`Stats.reach_warmstarts`)."""
     qa = np.asarray(q_start, dtype=float).ravel()
     qb = np.asarray(q_goal, dtype=float).ravel()
     sol = graph.query_configs(qa, qb)
-    pts = sol.path if math.isfinite(sol.cost) and len(sol.path) else np.vstack([qa, qb])
-    return resample_polyline(pts, int(n_waypoints))
+    used = math.isfinite(sol.cost) and len(sol.path) > 0
+    pts = sol.path if used else np.vstack([qa, qb])
+    return resample_polyline(pts, int(n_waypoints)), bool(used)

@@ -69,8 +69,9 @@ class Compiled:
         return getattr(dom, "name", "domain")
 
 
-def load_and_compile(paths: Sequence[str] | str) -> Compiled:
-    """Load a problem (its domain found next to it, or given first), compile task and factory."""
+def load_and_compile(paths: Sequence[str] | str, instance: int | None = None) -> Compiled:
+    """Load a problem (its domain found next to it, or given first), compile task and factory.
+    `instance`: the randomised instance of that seed (`gnppdsl.ir.instances.draw_instance`)."""
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     from gnppdsl.inputs import SOURCE_SUFFIXES, InputError, check_suffix, read_text
 
@@ -91,6 +92,10 @@ def load_and_compile(paths: Sequence[str] | str) -> Compiled:
         problem = load_problem(prob_path, dom_path)
     else:
         problem = load_problem(paths[0])
+    if instance is not None:
+        from gnppdsl.ir.instances import draw_instance
+
+        problem = draw_instance(problem, instance)
     return compile_problem(problem)
 
 
@@ -152,14 +157,29 @@ def object_keys(problem: Problem) -> Callable[[str], str]:
     return lambda name: keys.get(name, "-")
 
 
+_COMPARED: dict[type, tuple[str, ...] | None] = {}
+
+
+def _compared_fields(cls: type) -> tuple[str, ...] | None:
+    """The names of a dataclass's `compare=True` fields, None for other types; per type, once.
+    Why: `dataclasses.fields` per node was ~40 % of `fingerprint` (6,000 nodes on the Lab
+    domain, every `load_and_compile`)."""
+    hit = _COMPARED.get(cls, ())
+    if hit != ():
+        return hit
+    import dataclasses
+
+    names = tuple(f.name for f in dataclasses.fields(cls) if f.compare) if dataclasses.is_dataclass(cls) else None
+    _COMPARED[cls] = names
+    return names
+
+
 def canonical(obj: object) -> str:
     """A deterministic text form of nested dataclasses / containers (sets sorted, spans and
     other `compare=False` fields left out)."""
-    import dataclasses
-
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        fields = [f for f in dataclasses.fields(obj) if f.compare]
-        return f"{type(obj).__name__}(" + ",".join(f"{f.name}={canonical(getattr(obj, f.name))}" for f in fields) + ")"
+    fields = None if isinstance(obj, type) else _compared_fields(type(obj))
+    if fields is not None:
+        return f"{type(obj).__name__}(" + ",".join(f"{f}={canonical(getattr(obj, f))}" for f in fields) + ")"
     if isinstance(obj, dict):
         return "{" + ",".join(sorted(f"{canonical(k)}:{canonical(v)}" for k, v in obj.items())) + "}"
     if isinstance(obj, (set, frozenset)):

@@ -27,7 +27,7 @@ import time
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 from gnppdsl.compile.sas import PartialState
 from gnppdsl.ir.model import Problem
@@ -36,12 +36,15 @@ from gnppdsl import interrupt
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.options import Progress, SolveOptions
-from gnppdsl.solve.coverage import Coverage
+from gnppdsl.solve.anytime import Anytime
 from gnppdsl.solve.result import INTERRUPTED, TIME_LIMIT, Conflict, Result
 from gnppdsl.solve.timing import annotate_motion
 
+if TYPE_CHECKING:  # pragma: no cover  (clingo: imported when a solve starts)
+    from gnppdsl.logic.planner import Plan
 
-class Loop(Coverage):
+
+class Loop(Anytime):
     """The loops of one solve: GNPP (Fig. 3; R-LGP when `algorithm` is rlgp, with the travel
     costs of `rlgp`) and One-way (Sec. VIII-C)."""
 
@@ -62,42 +65,49 @@ class Loop(Coverage):
             res = self.next_plan(enumerate_=False)
             if not res.found:
                 return self.stop_result(res)
-            plan = res.plan
-            self.stats.plans += 1
-            if self.stats.N0 is None:
-                self.stats.N0 = len(plan)
-            self.say(f"plan #{self.stats.plans} (length {len(plan)}): {', '.join(plan.names) or '(empty)'}")
-            graph = self.build_graph(plan.states)
-            if self.db is not None:
-                known = self.db.infeasible_inside(graph)
-                if known:
-                    self.stats.db_infeasible_hits += 1
-                    self.add_conflict(plan, known, "database", "")
-                    continue
-            outcome = self.evaluate(graph, use_db=self.db is not None)
-            if outcome[0] == "solution":           # verified; near pairs join (the active set)
-                outcome = self.cover(plan, graph, outcome[1])
-            if outcome[0] == "result":
-                return outcome[1]
-            if outcome[0] == "conflict":
-                if not self.confirm_sweeping(outcome[1]):
-                    self.say("  plan blocked: a conflict without facts (it would forbid every plan) "
-                             "was found feasible from more starts")
-                    self.planner.block_plan(plan)
-                    self.conflicts.append(Conflict(
-                        tuple(PartialState.of(enumerate(s)) for s in plan.states),
-                        "blocked plan (a conflict without facts failed its confirmation): "
-                        + "; ".join(plan.names), (), "plan", "", self.stats.plans, 0))
-                    continue
-                self.add_conflict(plan, outcome[1], "nlp", outcome[2])
-                continue
-            # the solver contradicted itself (infeasible as a whole, every component feasible):
-            # no sound conflict, so only this plan is given up
-            self.say(f"  plan blocked: {outcome[1]}")
-            self.planner.block_plan(plan)
-            self.conflicts.append(Conflict(tuple(PartialState.of(enumerate(s)) for s in plan.states),
-                                           f"blocked plan ({outcome[1]}): " + "; ".join(plan.names), (),
-                                           "plan", "", self.stats.plans, 0))
+            out = self.attempt(res.plan)
+            if out is not None:
+                return self.improve(out) if self.options.anytime > 0 and out.solved else out
+
+    def attempt(self, plan: Plan) -> Result | None:
+        """Fig. 3, steps 2-4 on one plan: its verified Result (solved or not), or None when the
+        plan gave a conflict (handed to the planner) or was blocked."""
+        self.stats.plans += 1
+        if self.stats.N0 is None:
+            self.stats.N0 = len(plan)
+        self.say(f"plan #{self.stats.plans} (length {len(plan)}): {', '.join(plan.names) or '(empty)'}")
+        graph = self.build_graph(plan.states)
+        if self.db is not None:
+            known = self.db.infeasible_inside(graph)
+            if known:
+                self.stats.db_infeasible_hits += 1
+                self.add_conflict(plan, known, "database", "")
+                return None
+        outcome = self.evaluate(graph, use_db=self.db is not None)
+        if outcome[0] == "solution":           # verified; near pairs join (the active set)
+            outcome = self.cover(plan, graph, outcome[1])
+        if outcome[0] == "result":
+            return outcome[1]
+        if outcome[0] == "conflict":
+            if not self.confirm_sweeping(outcome[1]):
+                self.say("  plan blocked: a conflict without facts (it would forbid every plan) "
+                         "was found feasible from more starts")
+                self.planner.block_plan(plan)
+                self.conflicts.append(Conflict(
+                    tuple(PartialState.of(enumerate(s)) for s in plan.states),
+                    "blocked plan (a conflict without facts failed its confirmation): "
+                    + "; ".join(plan.names), (), "plan", "", self.stats.plans, 0))
+                return None
+            self.add_conflict(plan, outcome[1], "nlp", outcome[2])
+            return None
+        # the solver contradicted itself (infeasible as a whole, every component feasible):
+        # no sound conflict, so only this plan is given up
+        self.say(f"  plan blocked: {outcome[1]}")
+        self.planner.block_plan(plan)
+        self.conflicts.append(Conflict(tuple(PartialState.of(enumerate(s)) for s in plan.states),
+                                       f"blocked plan ({outcome[1]}): " + "; ".join(plan.names), (),
+                                       "plan", "", self.stats.plans, 0))
+        return None
 
     def oneway(self) -> Result:
         while True:

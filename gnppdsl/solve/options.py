@@ -82,6 +82,9 @@ class SolveOptions:
     minimise_conflicts: bool = False  # gnpp: drop every fact of a conflict whose factors the
                                      # infeasibility does not need (`gnppdsl.conflicts.minimise`,
                                      # one NLP with restarts per fact)
+    anytime: float = 0.0             # seconds after the first solution spent on cheaper logical
+                                     # plans under a cost bound (`gnppdsl.solve.anytime`; 0: off),
+                                     # within the time limit
 
     @staticmethod
     def from_settings(settings: SolverSettings | None = None, **overrides: Any) -> "SolveOptions":
@@ -90,7 +93,7 @@ class SolveOptions:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
                          "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "planner",
-                         "optimise"):
+                         "optimise", "anytime"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -108,7 +111,7 @@ class SolveOptions:
             raise UserError("the time limit must be positive")
         from gnppdsl.ir.model import setting_problem
 
-        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter"):
+        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime"):
             value = getattr(self, key, None)        # the ranges of the `solver { }` block
             problem = setting_problem(key, value) if value is not None else None
             if problem is not None:
@@ -119,6 +122,9 @@ class SolveOptions:
             raise UserError(f"planner fd cannot serve algorithm {self.algorithm}: "
                             + ("One-way enumerates plans in order of length" if self.algorithm == "oneway"
                                else "R-LGP minimises travel costs") + " (use planner sequential or auto)")
+        if self.anytime and self.algorithm == "oneway":
+            raise UserError("anytime needs the gnpp or rlgp algorithm (One-way learns no conflicts "
+                            "to bound its plans)")
         if self.order not in ORDERS:
             raise UserError(f"order '{self.order}' is not available (use {', '.join(ORDERS[:-1])} "
                             f"or {ORDERS[-1]})")

@@ -92,6 +92,15 @@ class Stats:
     logic_cpu: float = 0.0            # CPU seconds of the same (Fast Downward's child processes included)
     factory_time: float = 0.0         # seconds building graph-NLPs
     reach_time: float = 0.0           # seconds building / querying reachability graphs (rlgp)
+    reach_samples: int = 0            # rlgp: IK-validated end-effector samples of the graphs (Eq. 2)
+    reach_queries: int = 0            # ... path queries (travel costs, warm starts)
+    reach_library_hits: int = 0       # ... answered by the solution library
+    reach_edge_checks: int = 0        # ... lazy edge collision checks
+    reach_edges_removed: int = 0      # ... edges those checks removed
+    reach_enhanced_nodes: int = 0     # ... nodes added by enhancement (Gaussian samples)
+    reach_warmstarts: int = 0         # trajectories warm-started with a graph path (getWaypoints)
+    reach_waypoints: int = 0          # ... their waypoints
+    reach_straight: int = 0           # warm starts the graph had no path for (straight line instead)
     total_time: float = 0.0           # wall clock
     cpu_time: float = 0.0             # CPU seconds of this process and its C compiler runs (the paper's "time")
     plans: int = 0                    # candidate logic plans evaluated
@@ -123,6 +132,7 @@ class Stats:
     cost: float | None = None         # the objective (`minimize` terms) at the returned solution
     cost_feasible: float | None = None   # ... at the loop's feasible solution, before optimising
     optimised: bool = False           # the optimisation phase's point replaced that solution
+    plan_cost: float | None = None    # the returned plan's symbolic action costs (operator costs)
     optimise_time: float = 0.0        # CPU seconds of the optimisation phase
     factors: int = 0                  # factors in the solution's graph-NLP
     variables: int = 0
@@ -151,6 +161,9 @@ class Result:
     verification: dict[str, Any] | None = None
     # robot -> {"base": metres driven (None: fixed base), "end_effector": metres}
     path_length: dict[str, dict[str, float | None]] = field(default_factory=dict)
+    # the anytime phase (`gnppdsl.solve.anytime.AnytimeReport.to_json`): cost = plan cost +
+    # objective, whether optimality was proved and over which plans, the history (time, cost)
+    anytime: dict[str, Any] | None = None
     # not serialised: the objects the tests re-check (task, factors, VarInstance -> value)
     extras: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -197,6 +210,7 @@ class Result:
             "path_length": _finite(self.path_length),
             "stats": _finite(asdict(self.stats)),
             "verification": self.verification,
+            "anytime": self.anytime,
         }
 
     def write_json(self, path: str | Path, what: str = "--json") -> None:
@@ -237,6 +251,12 @@ class Result:
             + f"plans {s.plans}, conflicts {s.conflicts}, "
             f"N0 {_opt(s.N0)}{'' if s.N0_shortest is not False else ' (not proven shortest)'}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
         )
+        if s.reach_samples:
+            lines.append(f"reachability: {s.reach_samples} samples, {s.reach_queries} queries "
+                         f"({s.reach_library_hits} from the library), {s.reach_edge_checks} edge checks "
+                         f"({s.reach_edges_removed} edges removed), {s.reach_enhanced_nodes} enhancement "
+                         f"nodes; {s.reach_warmstarts} trajectories warm-started with graph paths "
+                         f"({s.reach_waypoints} waypoints), {s.reach_straight} without a path")
         if s.kernels_failed:
             lines.append(f"jit: {s.kernels_failed} kernels not compiled, run by casadi's virtual machine "
                          f"(last error: {s.kernel_error.strip().splitlines()[-1][:200] if s.kernel_error.strip() else '?'})")
@@ -258,6 +278,13 @@ class Result:
         if s.cost is not None:
             how = ("optimised" if s.optimised else "not improved") + f" in {s.optimise_time:.2f} s"
             lines.append(f"objective: {s.cost:.6g} (the feasible solution's: {s.cost_feasible:.6g}; {how})")
+        a = self.anytime
+        if a is not None:
+            proof = (f"optimal, proved over {a['scope']}" if a["proved_optimal"]
+                     else f"not proved optimal ({a['stopped']})")
+            lines.append(f"anytime: cost {a['cost']:.6g} = plan cost {a['plan_cost']:g} + objective "
+                         f"{a['objective']:.6g}, {proof}; {a['plans']} plans in {a['seconds']:.2f} s, "
+                         f"costs " + " -> ".join(f"{h['cost']:.6g} at {h['time']:.1f} s" for h in a["history"]))
         for robot, lengths in self.path_length.items():
             parts = [f"{k.replace('_', ' ')} {v:.3f} m" for k, v in lengths.items() if v is not None]
             if parts:

@@ -65,14 +65,36 @@ class ReachabilityCosts:
         a, b = by.get((key, traj.step)), by.get((key, traj.step + 1))
         if a is None or b is None:
             return None
-        from gnppdsl.reach.integration import warmstart_waypoints
+        from gnppdsl.reach.integration import graph_waypoints
 
         t0 = time.perf_counter()
         try:
-            pts = warmstart_waypoints(graph, values[a], values[b], traj.waypoints)
+            pts, used = graph_waypoints(graph, values[a], values[b], traj.waypoints)
         except (ValueError, IndexError):
             return None
         finally:
             self.stats.reach_time += time.perf_counter() - t0
         pts = np.asarray(pts, float)
-        return pts.reshape(-1) if pts.size == traj.dim else None
+        if pts.size != traj.dim:
+            return None
+        if used:
+            self.stats.reach_warmstarts += 1
+            self.stats.reach_waypoints += traj.waypoints
+        else:
+            self.stats.reach_straight += 1
+        return pts.reshape(-1)
+
+    def reach_statistics(self) -> None:
+        """The graphs' own counters in `stats` (Sec. IV at work): queries and solution-library
+        hits, lazy edge checks and the edges they removed, enhancement samples."""
+        s = self.stats
+        s.reach_samples = s.reach_queries = s.reach_library_hits = 0
+        s.reach_edge_checks = s.reach_edges_removed = s.reach_enhanced_nodes = 0
+        for graph, _ in self.reach.values():
+            g = graph.stats
+            s.reach_samples += graph.num_samples
+            s.reach_queries += g.queries
+            s.reach_library_hits += graph.library.hits
+            s.reach_edge_checks += g.edge_checks
+            s.reach_edges_removed += g.edges_removed
+            s.reach_enhanced_nodes += g.enhanced_nodes

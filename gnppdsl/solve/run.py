@@ -198,7 +198,20 @@ class Run(ReachabilityCosts):
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
+        self.finish_stats()
+        if self.db is not None:
+            self.db.close()
+        return Result(problem=self.compiled.name, domain=self.compiled.domain_name,
+                      algorithm=self.options.algorithm, switches=self.options.switches,
+                      seed=self.options.seed, status=status, message=message,
+                      conflicts=self.conflicts, stats=self.stats, time_limit=self.options.time_limit, **kw)
+
+    def finish_stats(self) -> None:
+        """The run's totals in `stats` (times, NLP counts, kernels) as of now; called by `result`
+        and again by the anytime phase, whose result is an earlier one."""
         self.stats.total_time = time.perf_counter() - self.start
+        if self.reach:
+            self.reach_statistics()
         # CPU of this process and of the child processes it waited for (the C compiler of the
         # setting jit: 0 with a warm cache; nothing else in a solve starts processes)
         self.stats.cpu_time = time.process_time() - self.cpu_start + _children_cpu() - self.children_cpu_start
@@ -214,12 +227,6 @@ class Run(ReachabilityCosts):
         self.stats.nlp_solves = self.nlp_calls + self.heuristic_solves
         self.stats.ipopt_runs = sum(s.solves for s in self.solvers)
         self.stats.nlp_time = sum(s.solve_time for s in self.solvers)
-        if self.db is not None:
-            self.db.close()
-        return Result(problem=self.compiled.name, domain=self.compiled.domain_name,
-                      algorithm=self.options.algorithm, switches=self.options.switches,
-                      seed=self.options.seed, status=status, message=message,
-                      conflicts=self.conflicts, stats=self.stats, time_limit=self.options.time_limit, **kw)
 
     def stop_result(self, res: PlanResult) -> Result:
         from gnppdsl.logic.planner import Status
@@ -259,6 +266,7 @@ class Run(ReachabilityCosts):
         worst = max(worst, bound_worst)
         self.stats.max_violation = worst
         self.stats.N = len(plan)
+        self.stats.plan_cost = sum(self.compiled.task.operators[o].cost for o in plan.operators)
         self.stats.factors = len(factors)
         self.stats.variables = len(graph.variables)
         steps = steps_of(self.task, plan, graph, values)

@@ -124,7 +124,7 @@ def test_journal_header_is_the_field_list(tmp_path):
     rows = read_rows(tmp_path / "new.csv")
     assert tuple(rows[0].keys()) == CSV_FIELDS
     assert rows[0]["status"] == "solved" and rows[0]["N0"] == ""
-    assert CsvJournal(tmp_path / "new.csv").done() == {("f", "oneway", "0")}
+    assert CsvJournal(tmp_path / "new.csv").done() == {("f", "oneway", "0", "")}   # no instance
 
 
 def test_csv_in_a_new_directory_is_created(tmp_path):

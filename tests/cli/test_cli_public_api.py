@@ -25,7 +25,8 @@ def test_the_public_names_have_their_documented_signatures():
     assert list(sig.parameters) == ["problem", "options", "progress", "overrides"]
     assert sig.parameters["options"].default is None and sig.parameters["progress"].default is None
     assert sig.parameters["overrides"].kind is inspect.Parameter.VAR_KEYWORD
-    assert list(inspect.signature(gnppdsl.load_and_compile).parameters) == ["paths"]
+    assert list(inspect.signature(gnppdsl.load_and_compile).parameters) == ["paths", "instance"]
+    assert inspect.signature(gnppdsl.load_and_compile).parameters["instance"].default is None
     defaults = {f.name: f.default for f in dataclasses.fields(gnppdsl.SolveOptions)}
     assert {k: defaults[k] for k in ("algorithm", "switches", "time_limit", "seed")} == \
         {"algorithm": "gnpp", "switches": "trn", "time_limit": 60.0, "seed": 0}
@@ -59,9 +60,9 @@ def _spies(monkeypatch) -> list:
         assert isinstance(r, gnppdsl.Result)
         return dataclasses.replace(r, message=r.message + " [through gnppdsl.solve_problem]")
 
-    def load_and_compile(paths):
-        calls.append(("load_and_compile", paths, None))
-        return real_load(paths)
+    def load_and_compile(paths, instance=None):
+        calls.append(("load_and_compile", paths, instance))
+        return real_load(paths, instance=instance)
 
     class SolveOptions(real_options):
         @staticmethod

@@ -17,7 +17,7 @@ from gnppdsl.solve.verify_solution import verify_solution
 
 MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 EXPECTED = yaml.safe_load((MOBILE / "expected.yaml").read_text())["problems"]
-ALGORITHM = {"sort2": "gnpp", "pick_place": "rlgp", "sort4": "rlgp"}
+ALGORITHM = {"sort2": "gnpp", "pick_place": "rlgp", "sort4": "rlgp", "sort_random": "rlgp", "pick_place3": "rlgp"}
 
 
 def test_every_mobile_problem_has_a_solve_test():
@@ -38,3 +38,24 @@ def test_mobile_problem_solved_and_verified(name):
     rep = verify_solution(c.geometry, r)
     assert rep.ok, str(rep)
     assert rep.keyframes == len(r.plan) + 1 and rep.waypoints > 0
+
+
+@pytest.mark.slow
+def test_sort2_anytime_costs_never_increase_and_each_incumbent_is_verified():
+    """Anytime on sort2 (GNPP_trn): the history's costs fall, the returned cost is the last
+    one and equals action costs + the objective re-evaluated at the returned solution; a proof
+    can only cover all plans (a fifth action costs more than the first solution)."""
+    from gnppdsl.nlp.optimisation import objective_value
+
+    c = load_and_compile(str(MOBILE / "sort2.pntc"))
+    r = solve_compiled(c, SolveOptions.from_settings(c.problem.settings, algorithm="gnpp", time_limit=1200,
+                                                     seed=0, anytime=900))
+    assert r.status == "solved", r.message
+    a = r.anytime
+    costs = [h["cost"] for h in a["history"]]
+    assert costs == sorted(costs, reverse=True) and costs[-1] == a["cost"]
+    terms = c.factory.objectives(r.extras["plan"].states)
+    assert a["objective"] == pytest.approx(objective_value(terms, r.extras["values"], c.geometry), abs=1e-9)
+    assert a["plan_cost"] == 4 and a["cost"] < 5
+    assert not a["proved_optimal"] or a["scope"] == "all plans"
+    assert verify_solution(c.geometry, r).ok

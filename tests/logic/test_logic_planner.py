@@ -169,6 +169,39 @@ def test_optimal_plan_with_operator_and_pair_costs():
     assert solved >= 4
 
 
+def test_cost_bound_admits_exactly_the_plans_brute_force_finds_under_it():
+    """`optimal_plan(H, cost_bound=B)`: no plan iff every plan of length <= H costs more than B
+    (the anytime search's proof of optimality), else the cheapest; repeated with each answer
+    blocked it hands out plans in order of cost, as the brute-force list sorted by cost."""
+    checked = proofs = 0
+    for rng, task, conflicts in random_cases(11, 12):
+        for o, op in enumerate(task.operators):
+            task.operators[o] = Operator(op.name, op.pre, op.effects, rng.randint(1, 5))
+        H = 4
+        plans = all_plans(task, H, conflicts)
+        costs = sorted(cheapest(task, {p}) for p in plans)
+        planner = IncrementalPlanner(task)
+        planner.add_conflicts(conflicts)
+        for bound in (0, 2, 4, 7):
+            res = planner.optimal_plan(H, cost_bound=bound)
+            if not costs or costs[0] > bound:
+                assert res.status is Status.NO_PLAN and "cost <= " in res.message
+                proofs += 1
+            else:
+                assert res.found and res.plan.cost == costs[0] and res.plan.optimal
+                check(task, res.plan, conflicts)
+            checked += 1
+        seen = []
+        while True:                                  # the anytime order: cheapest, blocked, next
+            res = planner.optimal_plan(H, cost_bound=max(costs, default=0))
+            if not res.found:
+                break
+            seen.append(res.plan.cost)
+            planner.block_plan(res.plan)
+        assert seen == costs[:len(seen)] and len(seen) == len(costs)
+    assert checked >= 40 and proofs >= 5
+
+
 def test_blocked_plans_stay_blocked_in_cheapest_plan_mode():
     task = tower_task(3)
     planner = IncrementalPlanner(task)

@@ -58,8 +58,18 @@ def test_graph_waypoints_warm_start_trajectories(run):
     qa, qb = np.asarray(graph.G.nodes[a]["q"], float), np.asarray(graph.G.nodes[b]["q"], float)
     q = lambda i: VarInstance("q", (robot,), i, "joints", nq)
     path = VarInstance("path", (robot,), 0, "joints", 20 * nq, frozenset({"traj"}), waypoints=20)
+    before = (run.stats.reach_warmstarts, run.stats.reach_waypoints)
     pts = run.reach_warmstart(path, {q(0): qa, q(1): qb})
     assert pts is not None
+    # the statistics count it: one trajectory, its 20 waypoints from the graph; asked again,
+    # the solution library answers (one more query, one more hit)
+    assert (run.stats.reach_warmstarts, run.stats.reach_waypoints) == (before[0] + 1, before[1] + 20)
+    run.reach_statistics()
+    queries, hits = run.stats.reach_queries, run.stats.reach_library_hits
+    assert run.stats.reach_samples == graph.num_samples and queries >= 1
+    assert np.array_equal(run.reach_warmstart(path, {q(0): qa, q(1): qb}), pts)
+    run.reach_statistics()
+    assert (run.stats.reach_queries, run.stats.reach_library_hits) == (queries + 1, hits + 1)
     pts = pts.reshape(20, nq)
     assert np.allclose(pts[0], qa) and np.allclose(pts[-1], qb)
     # the waypoints follow the graph's path (it passes through its intermediate nodes), which
