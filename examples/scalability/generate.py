@@ -8,6 +8,7 @@ changing the layout. The problems use examples/lab/domain.pntc (`domain.pntc` he
 it) with explicit facts.
 
     python examples/scalability/generate.py [--out DIR] [--stack 4 8 16 32] [--clutter 1 2 3 4 5 6]
+        [--pads 6] [--seed S]
 
 Families (N0: shortest logical plan; N: shortest geometrically feasible plan, by construction):
 - stack_<n>: n blocks on the table in two rows (y = 0 and y = 0.2) of n/2 columns; the goal
@@ -32,6 +33,7 @@ Families (N0: shortest logical plan; N: shortest geometrically feasible plan, by
 from __future__ import annotations
 
 import argparse
+import random
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -166,8 +168,10 @@ def stack(n: int) -> Instance:
     return inst
 
 
-def clutter(k: int, blocks: int = 6) -> Instance:
-    """`blocks` blocks onto their pads, k pads covered by obstacles (Appendix D, Fig. 7)."""
+def clutter(k: int, blocks: int = 6, seed: int | None = None) -> Instance:
+    """`blocks` blocks onto their pads, k pads covered by obstacles (Appendix D, Fig. 7).
+    `seed`: the covered pads are a random choice (default: outermost first), for instances
+    that differ from the bundled ones."""
     if not 0 <= k <= blocks:
         raise ValueError(f"0 <= obstacles <= {blocks} (one per pad), got {k}")
     n0 = 2 * blocks
@@ -187,6 +191,9 @@ def clutter(k: int, blocks: int = 6) -> Instance:
         inst.goal.append(f"parent({b}) = {p}")
     # obstacles on the pads, outermost first (alternating sides)
     order = sorted(range(blocks), key=lambda i: (-abs(xs[i]), xs[i]))
+    if seed is not None:
+        random.Random(seed).shuffle(order)
+        inst.name += f"_s{seed}"
     for j, i in enumerate(order[:k]):
         o = f"o{j + 1}"
         inst.obstacles.append(o)
@@ -226,8 +233,9 @@ def lab5_paper() -> Instance:
     return inst
 
 
-def family(stacks: list[int], clutters: list[int]) -> list[Instance]:
-    return [stack(n) for n in stacks] + [clutter(k) for k in clutters] + [lab4_paper(), lab5_paper()]
+def family(stacks: list[int], clutters: list[int], pads: int = 6, seed: int | None = None) -> list[Instance]:
+    return ([stack(n) for n in stacks] + [clutter(k, pads, seed) for k in clutters]
+            + [lab4_paper(), lab5_paper()])
 
 
 def expected_yaml(instances: list[Instance]) -> str:
@@ -263,9 +271,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=HERE, help="output directory (default: next to this script)")
     ap.add_argument("--stack", type=int, nargs="*", default=[4, 8, 16, 32], help="block counts (even)")
     ap.add_argument("--clutter", type=int, nargs="*", default=[1, 2, 3, 4, 5, 6], help="obstacle counts")
+    ap.add_argument("--pads", type=int, default=6, help="blocks and goal pads of the cluttered table (default 6)")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="cover a random choice of pads (names get _s<seed>); default: outermost first")
     args = ap.parse_args(argv)
     try:
-        paths = write(args.out, family(args.stack, args.clutter))
+        paths = write(args.out, family(args.stack, args.clutter, args.pads, args.seed))
     except ValueError as exc:
         print(f"generate.py: {exc}", file=sys.stderr)
         return 2

@@ -15,7 +15,8 @@ import sys
 from pathlib import Path
 
 from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
-                                     add_order_argument, check_outputs, check_ranges)
+                                     add_order_argument, add_planner_argument, check_outputs,
+                                     check_ranges)
 from gnppdsl.cli.algorithms import AlgorithmSpec, parse_algorithms   # light as well
 
 DEFAULT_ALGORITHMS = "oneway,gnpp_t,gnpp_tr,gnpp_trn,gnpp_trng"
@@ -42,6 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_jit_argument(parser, default="off (no run's time depends on what background compilers have "
                                      "finished; --jit counts each compile in the run that needs it)")
     add_curvature_argument(parser)
+    add_planner_argument(parser)
     parser.add_argument("--csv", default=None, metavar="FILE",
                         help="one row per run, appended as each run ends; an existing file of an "
                              "earlier sweep is resumed (only the runs it lacks are run)")
@@ -205,6 +207,18 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise UserError("--memory-limit must be at least 64 (MB)")
 
 
+def _check_planner(args: argparse.Namespace, specs: list[AlgorithmSpec]) -> None:
+    """`--planner fd` serves the Graph-NLP Planner only (One-way enumerates plans by length, R-LGP
+    minimises costs: both need clingo): refused before any run rather than one error row per cell."""
+    from gnppdsl.errors import UserError
+
+    if args.planner == "fd":
+        other = [s.label for s in specs if s.algorithm != "gnpp"]
+        if other:
+            raise UserError(f"--planner fd serves the gnpp algorithms only, not {', '.join(other)} "
+                            f"(choose --algorithms gnpp_..., or --planner auto / sequential)")
+
+
 def _write_text(path: str, text: str, option: str) -> None:
     from gnppdsl.errors import UserError
     from gnppdsl.outputs import write_atomic
@@ -224,14 +238,15 @@ def run(args: argparse.Namespace) -> int:
 
     specs = parse_algorithms(args.algorithms)
     _check_numbers(args)
+    _check_planner(args, specs)
     check_ranges(args)
     check_outputs(args, ("markdown", "plot"), parents_created=True)   # before minutes of benchmarking
     journal = CsvJournal(args.csv) if args.csv else None
     files = find_problems(args.paths)
     settings = RunSettings(time_limit=args.time_limit, max_horizon=args.max_horizon, order=args.order,
                            jit=bool(args.jit) if args.jit is not None else False,
-                           distance_curvature=args.distance_curvature, anytime=args.anytime,
-                           run_timeout=args.run_timeout, memory_mb=args.memory_limit)
+                           distance_curvature=args.distance_curvature, planner=args.planner,
+                           anytime=args.anytime, run_timeout=args.run_timeout, memory_mb=args.memory_limit)
     instances = range(args.seed, args.seed + args.instances) if args.instances else (None,)
     cells = list(grid(files, [s.label for s in specs], args.seeds, instances))
     done = journal.done() if journal else set()
@@ -283,6 +298,8 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(names, specs, rows))
     if args.instances:
         print(format_family_table(names, specs, rows))
+    if args.planner:
+        print(f"logic mode: planner {args.planner} (--planner)")
     from gnppdsl.geometry import native
     print(f"distance queries: {native.describe()}")
     if skipped:

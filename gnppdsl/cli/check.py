@@ -38,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from gnppdsl.ir.resolve import check_files
 
     report = check_files(args.files)
+    if report.ok:
+        _check_costs(report)
     text = report.render()
     if text:
         print(text, file=sys.stderr)
@@ -45,3 +47,24 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet or not report.ok:
         print(report.summary(), file=sys.stderr if not report.ok else sys.stdout)
     return 0 if report.ok else 2
+
+
+def _check_costs(report) -> None:
+    """Cost expressions need the scene (an attribute a place lacks, a negative distance): for a
+    problem whose domain has any, its ground costs are evaluated as the compiler will, and every
+    error joins the report. Only then: grounding is the one step of `gnpp check` whose time
+    grows with the problem, and other problems never need it."""
+    from gnppdsl.compile.task import build_task
+    from gnppdsl.errors import UserError
+    from gnppdsl.lang.diagnostics import Diagnostic, DiagnosticError
+
+    for problem in report.problems:
+        if not any(a.cost_expr is not None for a in problem.domain.actions.values()):
+            continue
+        try:
+            build_task(problem, prune=False)
+        except DiagnosticError as exc:
+            for d in exc.diagnostics:
+                report.reporter.add(d)
+        except UserError as exc:
+            report.reporter.add(Diagnostic(str(exc), problem.span, "compile"))

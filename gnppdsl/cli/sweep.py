@@ -53,6 +53,7 @@ class RunSettings:
     order: str | None = None
     jit: bool = False
     distance_curvature: bool | None = None
+    planner: str | None = None            # logic mode (None: the problem's setting, else auto)
     anytime: float | None = None          # seconds of the anytime phase (`--anytime`)
     run_timeout: float | None = None      # wall-clock cap of an isolated run (None: derived)
     memory_mb: int | None = None          # address-space cap of an isolated run (None: none)
@@ -204,7 +205,7 @@ def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
             compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
             time_limit=settings.time_limit, seed=cell.seed, max_horizon=settings.max_horizon,
             order=settings.order, jit=settings.jit, distance_curvature=settings.distance_curvature,
-            anytime=settings.anytime,
+            planner=settings.planner, anytime=settings.anytime,
         )
         # every run compiles its own templates: runs share nothing, so no algorithm or seed is
         # timed with the templates an earlier one compiled

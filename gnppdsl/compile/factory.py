@@ -140,6 +140,12 @@ class GraphNLPFactory:
             self._memo = (key, tuple(out), tuple(terms))
         return self._memo[1], self._memo[2]
 
+    def constant(self, expr, params: dict[str, str], where: str):
+        """A stage-1 expression without continuous variables or state values (an action cost,
+        `gnppdsl.compile.costs`) resolved with object parameters: scene attributes and consts
+        folded in, a tree of `Num`, `Vec`, `Index` and builtin `Call`s."""
+        return self._resolve(expr, _Ctx((), 0, params=dict(params), where=where), _Factor())
+
     def world_pose_expr(self, obj: str, states: Sequence[Sequence[int]], step: int
                         ) -> tuple[object, tuple[VarInstance, ...]]:
         """The world pose of `obj` in state `step` of <s_0 ... s_n> (SAS+ states, as for

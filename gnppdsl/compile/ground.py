@@ -21,11 +21,15 @@ Binding = dict[str, str]
 
 __all__ = [
     "Binding", "GroundRule", "bindings", "term_name", "var_name", "compare_holds",
-    "substitute", "ground_rules", "error_at", "MARKER", "RuleMatcher",
+    "substitute", "ground_rules", "error_at", "MARKER", "FINAL", "RuleMatcher",
 ]
 
 MARKER = "initial"
 """Name of the marker variable (values false/true, true only in s_0) used by `initial` rules."""
+FINAL = "final"
+"""Name of the derived variable (true iff the goal holds: only in s_n) used by `final` rules."""
+_MARKERS = {"initial": MARKER, "final": FINAL}
+_KINDS = ("state", "transition", "always", "initial", "final")
 
 
 def error_at(span: Span | None, message: str) -> UserError:
@@ -164,18 +168,17 @@ def ground_rules(problem: m.Problem, task: SASTask) -> list[GroundRule]:
     look = _FactLookup(task)
     out: list[GroundRule] = []
     for rule in problem.domain.rules:
-        if rule.kind not in ("state", "transition", "always", "initial"):
+        if rule.kind not in _KINDS:
             raise error_at(rule.span, f"unknown rule kind '{rule.kind}'")
         pre_lits = rule.pre
-        if rule.kind == "initial":
-            if MARKER not in look.index:
-                raise error_at(rule.span, "task has no `initial` marker variable")
+        if rule.kind in _MARKERS and _MARKERS[rule.kind] not in look.index:
+            raise error_at(rule.span, f"task has no `{rule.kind}` marker variable")
         for binding in bindings(problem, rule.params, rule.where):
             pre = look.partial_state(pre_lits, binding)
             if pre is None:
                 continue
-            if rule.kind == "initial":
-                pre = pre.union(PartialState.of([(look.index[MARKER], 1)]))
+            if rule.kind in _MARKERS:
+                pre = pre.union(PartialState.of([(look.index[_MARKERS[rule.kind]], 1)]))
             post = None
             if rule.kind == "transition":
                 post = look.partial_state(rule.post, binding)
@@ -217,10 +220,10 @@ class RuleMatcher:
         self._ground: dict[tuple, GroundRule | None] = {}
         self._static: dict[int, list[tuple]] = {}        # rule -> bindings of pattern-free rules
         for rule in self.rules:
-            if rule.kind not in ("state", "transition", "always", "initial"):
+            if rule.kind not in _KINDS:
                 raise error_at(rule.span, f"unknown rule kind '{rule.kind}'")
-            if rule.kind == "initial" and MARKER not in self.look.index:
-                raise error_at(rule.span, "task has no `initial` marker variable")
+            if rule.kind in _MARKERS and _MARKERS[rule.kind] not in self.look.index:
+                raise error_at(rule.span, f"task has no `{rule.kind}` marker variable")
             for lit in tuple(rule.pre) + tuple(rule.post):
                 if isinstance(lit, m.StateLit) and lit.negated:
                     raise error_at(lit.span, "rule patterns are conjunctions of "
@@ -235,7 +238,7 @@ class RuleMatcher:
         for r, rule in enumerate(self.rules):
             if rule.kind == "transition" and i == n:
                 continue
-            if rule.kind == "initial" and states[i][self.look.index[MARKER]] != 1:
+            if rule.kind in _MARKERS and states[i][self.look.index[_MARKERS[rule.kind]]] != 1:
                 continue
             nxt = states[i + 1] if rule.kind == "transition" else None
             for key in self._bindings(r, states[i], nxt):
@@ -253,8 +256,8 @@ class RuleMatcher:
         gr = None
         pre = self.look.partial_state(rule.pre, binding)
         if pre is not None:
-            if rule.kind == "initial":
-                pre = pre.union(PartialState.of([(self.look.index[MARKER], 1)]))
+            if rule.kind in _MARKERS:
+                pre = pre.union(PartialState.of([(self.look.index[_MARKERS[rule.kind]], 1)]))
             post = None
             if rule.kind == "transition":
                 post = self.look.partial_state(rule.post, binding)

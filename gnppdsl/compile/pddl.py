@@ -155,6 +155,7 @@ def write_pddl(task: SASTask, name: str | None = None) -> PDDLOutput:
         cond = disjuncts[0] if len(disjuncts) == 1 else "(or " + " ".join(disjuncts) + ")"
         body.append(f"  (:derived {head}\n    {cond})")
 
+    scale = task.cost_scale()
     for i, op in enumerate(task.operators):
         aname = actions(i, op.name)
         action_names[aname] = op.name
@@ -166,7 +167,7 @@ def write_pddl(task: SASTask, name: str | None = None) -> PDDLOutput:
                 effs.append(f"(when {enc.conjunction(eff.conditions)} (and {' '.join(parts)}))")
             else:
                 effs.extend(parts)
-        effs.append(f"(increase (total-cost) {op.cost})")
+        effs.append(f"(increase (total-cost) {task.integer_cost(op.cost, scale)})")
         body.append(f"  (:action {aname}\n    :parameters ()\n    :precondition {pre}\n"
                     f"    :effect (and {' '.join(effs)}))")
 

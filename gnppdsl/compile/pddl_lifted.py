@@ -245,7 +245,10 @@ class _Writer:
             env, decl = self.bind(act.params, {})
             pre = self.conj([self.formula(f, env) for f in act.pre])
             effs = [x for e in act.effects for x in self.effect(e, env)]
-            effs.append(f"(increase (total-cost) {act.cost})")
+            if act.cost_expr is not None or not float(act.cost).is_integer():
+                raise UserError(f"PDDL: the cost of action {name} is not an integer constant; the "
+                                f"lifted export cannot write it (the grounded one can)")
+            effs.append(f"(increase (total-cost) {int(act.cost)})")
             lines.append(f"  (:action {an}\n    :parameters ({decl})\n    :precondition {pre}\n"
                          f"    :effect (and {' '.join(effs)}))")
         return "\n".join(lines) + "\n)\n", names

@@ -13,6 +13,9 @@ Conventions
   or rule pattern may test them for 0 (negation by failure) or 1.
 - Operators: `pre` holds prevail and effect preconditions together (as in PDDL); `effects`
   assigns values, optionally under conditions (conditional effects are needed by Appendix B).
+- Costs: `Operator.cost` is a float >= 0 (the language's `cost` numbers and expressions);
+  `pair_costs` are integers (R-LGP travel, already scaled). The plan cost is the sum of both;
+  the planners see `integer_cost` (scaled by `cost_scale`, 1 when all costs are integers).
 """
 from __future__ import annotations
 
@@ -20,6 +23,8 @@ from dataclasses import dataclass, field
 from typing import Iterable, Mapping, Sequence
 
 Fact = tuple[int, int]
+
+COST_RESOLUTION = 1000     # non-integer costs reach the planners in thousandths (cost_scale)
 
 
 @dataclass(frozen=True, order=True)
@@ -85,7 +90,7 @@ class Operator:
     name: str                      # ground action in DSL syntax, e.g. "pick(b1, g, s1)"
     pre: tuple[Fact, ...]          # all preconditions (derived variables allowed)
     effects: tuple[Effect, ...]
-    cost: int = 1
+    cost: float = 1                # >= 0, in the user's units (`cost 10.5`, a cost expression)
 
     @property
     def action(self) -> str:
@@ -113,6 +118,20 @@ class SASTask:
     # so it can be written out: {(prev, op): cost}. Missing pairs cost 0.
     pair_costs: dict[tuple[int | None, int], int] = field(default_factory=dict)
     name: str = "task"
+
+    # ---- costs ---------------------------------------------------------------------------
+    def cost_scale(self) -> int:
+        """The factor that makes the costs integers for the logic planners (clingo `#minimize`
+        and Fast Downward take integer costs): 1 when every operator cost is an integer (the
+        pair costs always are), else `COST_RESOLUTION`, i.e. costs in thousandths, rounded.
+        Plans are compared on these integers; `plan_cost` reports the float sum."""
+        if all(float(op.cost).is_integer() for op in self.operators):
+            return 1
+        return COST_RESOLUTION
+
+    def integer_cost(self, cost: float, scale: int | None = None) -> int:
+        """`cost` in the planners' integer units (see `cost_scale`)."""
+        return int(round(cost * (self.cost_scale() if scale is None else scale)))
 
     # ---- lookups -------------------------------------------------------------------------
     def var_index(self, name: str) -> int:

@@ -84,7 +84,8 @@ def operator_sections(op: Operator) -> tuple[list[tuple[int, int]], list[tuple[t
 
 
 def write_sas(task: SASTask) -> str:
-    """The whole task as `.sas` text (version 3, with action costs)."""
+    """The whole task as `.sas` text (version 3, with action costs: integers, scaled by
+    `SASTask.cost_scale` when some cost is not)."""
     check_axiom_layers(task)
     lines: list[str] = ["begin_version", "3", "end_version", "begin_metric", "1", "end_metric"]
     lines.append(str(len(task.variables)))
@@ -99,6 +100,7 @@ def write_sas(task: SASTask) -> str:
     lines += ["begin_goal", str(len(task.goal.facts))]
     lines += [f"{v} {val}" for v, val in task.goal.facts]
     lines.append("end_goal")
+    scale = task.cost_scale()
     sections = [(op, *operator_sections(op)) for op in task.operators]
     sections = [sec for sec in sections if sec[2]]
     lines.append(str(len(sections)))
@@ -109,7 +111,7 @@ def write_sas(task: SASTask) -> str:
         for conds, var, pre, post in effects:
             cond_txt = " ".join(f"{v} {val}" for v, val in conds)
             lines.append(" ".join(x for x in (str(len(conds)), cond_txt, f"{var} {pre} {post}") if x))
-        lines += [str(op.cost), "end_operator"]
+        lines += [str(task.integer_cost(op.cost, scale)), "end_operator"]
     lines.append(str(len(task.axioms)))
     for ax in task.axioms:
         lines += ["begin_rule", str(len(ax.conditions))]

@@ -13,16 +13,28 @@ What the compiler decides here (and why):
   count (negation must cross layers; negation inside recursion is reported as an error).
 - `initial` in any rule adds a marker variable `initial` (true only in s_0: every operator
   sets it false), so conflicts that mention it can only ever match at step 0.
+- `final` in any rule adds a state variable `final` (false in s_0) and one operator `final()`
+  (cost 0) that requires the goal and sets it; every other operator requires `not final`, and
+  the task's goal becomes `final`. So every plan ends with `final()`, `final` holds in s_n and
+  nowhere before, and a `final` rule applies exactly at the last step: the state after the
+  last action, reached by a motion in which no symbolic fact changes (the robot may move home,
+  the objects stay where `stay` rules keep them). Conflicts that mention `final` can only
+  match at a plan's end. Why a compiled step and not "the goal holds": the last action's
+  keyframe is usually bound to its objects (a place puts the gripper at the block), so "the
+  robot ends at home" needs a motion after it.
 - Ground operators that can never apply (a value outside a variable's domain, contradictory
   preconditions, a false static comparison, inconsistent effects) are dropped, and so are those
   relaxed reachability from s_0 shows never applicable, with the values no variable can reach
   (`gnppdsl.compile.reachability`: every plan is kept; 80 planar blocks: 6720 -> 400 operators).
+- An operator's cost is its action's `cost` (a float), or its `cost` expression evaluated for
+  the binding from the problem and the scene (`gnppdsl.compile.costs`).
 """
 from __future__ import annotations
 
 from itertools import product
 
-from gnppdsl.compile.ground import MARKER, Binding, bindings, compare_holds, error_at, term_name, var_name
+from gnppdsl.compile.costs import ground_costs
+from gnppdsl.compile.ground import FINAL, MARKER, Binding, bindings, compare_holds, error_at, term_name, var_name
 from gnppdsl.compile.reachability import prune_unreachable
 from gnppdsl.compile.sas import Axiom, Effect, Fact, Operator, PartialState, SASTask, SASVariable
 from gnppdsl.errors import UserError
@@ -35,6 +47,10 @@ _DNF_LIMIT = 64          # an And whose expansion exceeds this gets auxiliary va
 
 Conj = tuple[Fact, ...]
 DNF = list[Conj]          # [] = false, [()] = true
+
+
+# the source of the compiled `final()` operator (ground_costs reads its cost from the operator)
+_FINAL_ACTION = m.Action(FINAL, (), (), (), 0)
 
 
 def uses_initial(domain: m.Domain) -> bool:
@@ -52,6 +68,7 @@ class _Builder:
         self.index: dict[str, int] = {}
         self.axioms: list[Axiom] = []
         self.aux_cache: dict[tuple, int] = {}
+        self.sources: list[tuple[m.Action, Binding]] = []   # operator i's action and binding
 
     # ---- variables ---------------------------------------------------------------------
     def add_var(self, name: str, values: tuple[str, ...], derived: bool, span=None) -> int:
@@ -171,6 +188,7 @@ class _Builder:
         marker = None
         if uses_initial(d):
             marker = self.add_var(MARKER, BOOL, False)
+        final = self.add_var(FINAL, BOOL, False) if any(r.kind == "final" for r in d.rules) else None
         heads = []
         for dp in d.derived.values():
             for binding in bindings(p, dp.params):
@@ -182,13 +200,19 @@ class _Builder:
 
         initial = self.initial_state(marker)
         goal = self.goal()
-        operators = self.operators(marker)
+        operators = self.operators(marker, final)
+        if final is not None:
+            effects = (Effect(final, 1),) + ((Effect(marker, 0),) if marker is not None else ())
+            operators.append(Operator(f"{FINAL}()", _merge([goal.facts, ((final, 0),)]), effects, 0))
+            self.sources.append((_FINAL_ACTION, {}))
+            goal = PartialState.of([(final, 1)])
         layers = self.layers()
         variables = [SASVariable(n, vals, layers.get(i, 0) if der else -1)
                      for i, (n, vals, der) in enumerate(zip(self.names, self.values, self.derived))]
         init = tuple(0 if der else initial[i] for i, der in enumerate(self.derived))
         axioms = sorted(set(self.axioms), key=lambda a: (variables[a.var].axiom_layer, a.var, a.conditions))
         task = SASTask(variables, init, goal, operators, axioms, name=p.name)
+        task = ground_costs(p, task, self.sources)
         return prune_unreachable(task) if self.prune else task
 
     def initial_state(self, marker: int | None) -> dict[int, int]:
@@ -227,20 +251,24 @@ class _Builder:
                                     "or contradictory goal facts)")
         return PartialState.of(conj)
 
-    def operators(self, marker: int | None) -> list[Operator]:
+    def operators(self, marker: int | None, final: int | None = None) -> list[Operator]:
         ops: list[Operator] = []
         for act in self.domain.actions.values():
             for b in bindings(self.problem, act.params):
-                op = self.operator(act, b, marker)
+                op = self.operator(act, b, marker, final)
                 if op is not None:
                     ops.append(op)
+                    self.sources.append((act, b))
         return ops
 
-    def operator(self, act: m.Action, b: Binding, marker: int | None) -> Operator | None:
+    def operator(self, act: m.Action, b: Binding, marker: int | None,
+                 final: int | None = None) -> Operator | None:
         name = f"{act.name}({', '.join(b[q.name] for q in act.params)})"
         pre = self.conjunction(act.pre, b, name)
         if pre is None:
             return None
+        if final is not None:                   # nothing happens after the final step
+            pre = _merge([pre, ((final, 0),)])
         effects: list[Effect] = []
         unconditional: dict[int, int] = {}
         for eff in act.effects:

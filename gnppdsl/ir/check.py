@@ -6,7 +6,7 @@ and it never raises: every mistake of every file ends up in the `CheckReport`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from gnppdsl.ir.modules import peek_header
@@ -21,6 +21,7 @@ class CheckReport:
     reporter: Reporter
     counts: dict[str, int]
     files: list[str]
+    problems: list = field(default_factory=list)   # resolved problems (M.Problem), for later stages
 
     @property
     def ok(self) -> bool:
@@ -57,6 +58,7 @@ def check_files(paths) -> CheckReport:
     ws = Workspace()
     files = expand_paths(paths)
     counts = {"domain": 0, "problem": 0, "module": 0, "scene": 0}
+    problems = []
     for path in files:
         suffix = Path(path).suffix.lower()
         if suffix in (".yaml", ".yml"):
@@ -84,5 +86,7 @@ def check_files(paths) -> CheckReport:
             domains = [c for c in files if c != path and (peek_header(Path(c)) or ("",))[0] == "domain"]
             dom_path = ws.find_domain(f, domains)
             if dom_path is not None:
-                ws.problem(path, dom_path)
-    return CheckReport(ws.reporter, counts, files)
+                problem = ws.problem(path, dom_path)
+                if problem is not None:
+                    problems.append(problem)
+    return CheckReport(ws.reporter, counts, files, problems)

@@ -83,6 +83,10 @@ class FactExpander:
         for it in items:
             if isinstance(it, ast.FactForall):
                 out.extend(self._forall(it, env))
+            elif isinstance(it, (ast.FOr, ast.FAnd)):      # a goal's `or` / `and`: expand inside
+                items = self.expand(it.items, env)
+                if len(items) == len(it.items):
+                    out.append(replace(it, items=tuple(items)))
             else:
                 lit = self._lit(it, env)
                 if lit is not None:

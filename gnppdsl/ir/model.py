@@ -241,14 +241,18 @@ class Action:
 
     `pre` is a conjunction of literals (StateLit may be `!=`, DerivedLit may be negated, Compare
     between parameters). Effects assign state variables only (never derived predicates).
+    `cost` is the cost of every ground action (a float >= 0), unless `cost_expr`, a typed scalar
+    expression of the parameters and the scene (`gnppdsl.ir.resolve_costs`), gives it per ground
+    action when the problem is compiled (`gnppdsl.compile.costs`).
     """
 
     name: str
     params: tuple[TypedParam, ...]
     pre: tuple[Literal, ...]
     effects: tuple[Effect, ...]
-    cost: int = 1
+    cost: float = 1
     span: Span | None = field(**_SPAN)
+    cost_expr: object | None = None
 
 
 # --------------------------------------------------------------------------------------------
@@ -380,6 +384,8 @@ class Rule:
       "transition"  `: p -> p' => ...`  at i = 0..n-1 where p ⊆ s_i and p' ⊆ s_{i+1}
       "always"      `: always => ...`   every step (p is empty)
       "initial"     `: initial => ...`  only step 0 (compiled to a marker variable)
+      "final"       `: final => ...`    only the plan's last step (compiled to a derived
+                    variable "the goal holds", which no operator may be applied in)
     `pre` is p and `post` is p' (empty tuple unless "transition"). Pattern literals are
     positive (`StateLit` with negated False; booleans by value; `DerivedLit` may be negated,
     meaning value false). `where` holds static guards (`Compare`) on the parameters.
@@ -666,7 +672,8 @@ class Problem:
                 -> its declared type
     init        one ground `Assign` per state-variable instance: the loader fills defaults
                 (booleans false, `none` where allowed) and reports any instance left unassigned
-    goal        ground literals (StateLit `=` and DerivedLit)
+    goal        ground literals (StateLit `=` and DerivedLit), and Or / And of them (`a or b`;
+                compiled to a derived goal variable, `gnppdsl.compile.task`)
     settings    domain settings <- problem `solver { }` (apply CLI options with `.merged`)
     relaxations the problem's schedule if it declares one, else the domain's
     scene       the loaded scene (None if the problem names no scene)
@@ -677,7 +684,7 @@ class Problem:
     domain: Domain
     objects: dict[str, str]
     init: tuple[Assign, ...]
-    goal: tuple[StateLit | DerivedLit, ...]
+    goal: tuple["StateLit | DerivedLit | Or | And", ...]
     settings: SolverSettings = SolverSettings()
     relaxations: tuple[Relaxation, ...] = ()
     reachability: tuple[Reachability, ...] = ()

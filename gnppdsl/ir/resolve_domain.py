@@ -14,6 +14,7 @@ from gnppdsl.ir import builtins as B
 from gnppdsl.ir import model as M
 from gnppdsl.ir.expr import Param, Span
 from gnppdsl.ir.families import group_names
+from gnppdsl.ir.resolve_costs import resolve_action_cost
 from gnppdsl.ir.resolve_logic import LogicResolver
 from gnppdsl.ir.resolve_rules import RuleResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
@@ -154,6 +155,10 @@ class DomainResolver:
                 self.continuous_decl(d)
         self.world_space = B.SE3
         frames = self.frames([d for d in items if isinstance(d, ast.FrameDecl)])
+        for d in items:
+            if isinstance(d, ast.ActionDecl) and d.cost is not None and d.name.value in self.actions:
+                a = self.actions[d.name.value]
+                self.actions[d.name.value] = resolve_action_cost(self, a, d)
         templates = self.templates()
         rules = tuple(r for d in items if isinstance(d, ast.RuleDecl)
                       if (r := RuleResolver(self, logic).rule(d)) is not None)

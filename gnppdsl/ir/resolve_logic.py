@@ -284,13 +284,9 @@ class LogicResolver:
             if key in seen and seen[key] != e.assign.value:
                 self.err(e.span, f"'{e.assign.var}' is assigned twice", "duplicate")
             seen[key] = e.assign.value
-        cost = 1
-        if d.cost is not None:
-            if not float(d.cost.value).is_integer() or d.cost.value < 0:
-                self.err(d.cost.span, "an action cost is a non-negative integer", "cost")
-            else:
-                cost = int(d.cost.value)
-        return M.Action(d.name.value, params, tuple(pre), tuple(effs), cost, d.span)
+        # the cost (a number or an expression of the scene) is resolved once the continuous
+        # declarations are known: gnppdsl.ir.resolve_costs
+        return M.Action(d.name.value, params, tuple(pre), tuple(effs), 1, d.span)
 
 
 def article(s: str) -> str:

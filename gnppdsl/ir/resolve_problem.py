@@ -62,10 +62,17 @@ class ProblemResolver:
                                 set(dom.state_vars) | set(dom.derived) | set(M.BUILTIN_VALUES), self.r)
         init: dict[tuple, M.Assign] = {}
         init_span = None
+        init_compound = False          # an `or` / `and` in init, reported: no follow-up errors
         for d in f.items:
             if isinstance(d, ast.InitDecl):
                 init_span = init_span or d.span
                 for lit in expander.expand(d.lits):
+                    if isinstance(lit, (ast.FOr, ast.FAnd)):
+                        init_compound = True
+                        self.err(lit.span, f"the initial state is one value per state variable: "
+                                 f"no `{'or' if isinstance(lit, ast.FOr) else 'and'}` here", "init",
+                                 "`or` and `and` combine goal facts")
+                        continue
                     x = logic.literal(lit, {})
                     if x is None:
                         continue
@@ -84,12 +91,13 @@ class ProblemResolver:
             if isinstance(d, ast.GoalDecl):
                 have_goal = True
                 for lit in expander.expand(d.lits):
-                    x = logic.literal(lit, {})
+                    x = logic.formula(lit, {})
                     if x is None:
                         continue
-                    if isinstance(x, M.Compare) or (isinstance(x, M.StateLit) and x.negated):
-                        self.err(lit.span, "a goal is a partial state: `var(...) = value`, boolean "
-                                 "literals and derived predicates", "goal")
+                    bad = _non_goal_literal(x, lit)
+                    if bad is not None:
+                        self.err(bad.span, "a goal is a partial state: `var(...) = value`, boolean "
+                                 "literals and derived predicates (combined by `or` / `and`)", "goal")
                         continue
                     goal.append(x)
         if not have_goal:
@@ -111,7 +119,7 @@ class ProblemResolver:
                         missing.append(_fact(v.name, args))
                         continue
                 full.append(a)
-        if missing:
+        if missing and not init_compound:
             shown = ", ".join(missing[:5]) + (f" and {len(missing) - 5} more" if len(missing) > 5 else "")
             self.err(init_span or f.header.span, f"the initial state gives no value to {shown}", "init",
                      "state variables without `none` in their domain must be assigned")
@@ -150,6 +158,17 @@ class ProblemResolver:
         if scene is not None:
             self.check_scene_objects(dom, objects, scene, scene_ref_span)
             for rb in reach:
+                if scene.dimension != 3:
+                    # the graph samples IK solutions of a URDF robot: refused here rather than
+                    # when `rlgp` first builds it (gnppdsl.reach.integration)
+                    travels = [h for h in rb.heuristics if h.measure == "travel"]
+                    for x in travels or [rb]:
+                        what = "travel(...) costs come from" if travels else "reachability blocks describe"
+                        self.err(x.span, f"reachability '{rb.name}': {what} a reachability graph, "
+                                 f"which needs a 3-D scene with a URDF robot; scene '{scene.name}' is "
+                                 f"planar", "scene", "drop the block for planar problems, or give "
+                                 "the action a `cost` expression (e.g. a scene distance)")
+                    continue
                 if rb.robot not in scene.robots:
                     self.err(rb.span, f"reachability '{rb.name}': robot '{rb.robot}' is not in the scene",
                              "unknown-name", did_you_mean(rb.robot, scene.robots))
@@ -215,3 +234,17 @@ class _DomainView:
 
     def is_subtype(self, a: str, b: str) -> bool:
         return self.dom.is_subtype(a, b)
+
+
+def _non_goal_literal(x, lit):
+    """The first literal of a goal item that is not a partial-state fact (a comparison or a
+    `!=`), or None. `x` is the resolved item (a literal, or M.Or / M.And of them)."""
+    if isinstance(x, (M.Or, M.And)):
+        for sub, sub_ast in zip(x.items, lit.items):
+            bad = _non_goal_literal(sub, sub_ast)
+            if bad is not None:
+                return bad
+        return None
+    if isinstance(x, M.Compare) or (isinstance(x, M.StateLit) and x.negated):
+        return lit
+    return None

@@ -317,7 +317,7 @@ class ActionDecl:
     params: tuple[Param, ...]
     pre: tuple[Lit, ...]
     effects: tuple[EffectAst, ...]
-    cost: ENum | None
+    cost: "ExprAst | None"                 # `cost 2`, `cost 10 + norm(...)`: see ir.resolve_costs
     duplicates: tuple[Name, ...] = ()      # repeated `pre`/`eff`/`cost` keywords (an error)
     span: Span | None = field(**_S)
 
@@ -382,7 +382,7 @@ class RuleDecl:
     name: Name
     params: tuple[Param, ...]
     where: tuple[Lit, ...]
-    kind: str                    # "state", "transition", "always", "initial"
+    kind: str                    # "state", "transition", "always", "initial", "final"
     pre: tuple[Lit, ...]
     post: tuple[Lit, ...]
     calls: tuple[TCall, ...]
@@ -516,13 +516,13 @@ class FactForall:
 
 @dataclass(frozen=True)
 class InitDecl:
-    lits: tuple[Lit | FactForall, ...]
+    lits: tuple["Lit | FactForall | FOr | FAnd", ...]      # FOr / FAnd: an error (resolver)
     span: Span | None = field(**_S)
 
 
 @dataclass(frozen=True)
 class GoalDecl:
-    lits: tuple[Lit | FactForall, ...]
+    lits: tuple["Lit | FactForall | FOr | FAnd", ...]      # `a or b`, `(a and b) or c`
     span: Span | None = field(**_S)
 
 

@@ -221,7 +221,7 @@ def _make_transformer(path: str, problems: list):
             return ("eff", c[0], sp(m))
 
         def cost(self, m, c):
-            return ("cost", num(c[0]), sp(m))
+            return ("cost", c[0], sp(m))
 
         def action_decl(self, m, c):
             params = c[1] if len(c) > 1 and isinstance(c[1], _Params) else _Params()
@@ -310,6 +310,9 @@ def _make_transformer(path: str, problems: list):
             for x in c:
                 items.extend(x.items if isinstance(x, ast.FAnd) else (x,))
             return ast.FAnd(tuple(items), sp(m))
+
+        fact_or = f_or          # `or` / `and` between goal facts: the same AST as in formulas
+        fact_and = f_and
 
         def f_not(self, m, c):
             return ast.FNot(c[0], sp(m))
@@ -464,6 +467,10 @@ def _make_transformer(path: str, problems: list):
         def pat_initial(self, m, c):
             return ("initial", (), (), sp(m))
 
+        def pat_final(self, m, c):
+            # the last state of the plan (compiled to a derived variable: the goal holds)
+            return ("final", (), (), sp(m))
+
         def pat_state(self, m, c):
             return ("state", c[0], (), sp(m))
 
@@ -612,6 +619,12 @@ def _syntax_diagnostic(err, path: str, text: str, reporter: Reporter) -> int:
         hint = _tags_hint(text, getattr(tok, "start_pos", None))
         if hint is not None:
             pass
+        elif tok.type != "$END" and str(tok.value) in ("or", "and"):
+            # `pre a or b`, `: p or q =>`: lists of facts here are conjunctions
+            hint = (f"'{tok.value}' combines facts only in `derived` bodies and goals; here the "
+                    + ("facts are a list (all must hold): for a disjunction declare "
+                       "`derived NAME(...) := a or b` and use NAME(...)" if tok.value == "or"
+                       else "facts are a list separated by `,` (all must hold)"))
         elif tok.type != "$END" and str(tok.value) in keywords() and "NAME" in err.expected:
             hint = (f"'{tok.value}' is a reserved word and cannot be used as a name here"
                     + ("; separate tags with commas" if tok.value in DECL_KEYWORDS else ""))

@@ -91,6 +91,7 @@ def task_facts(task: SASTask) -> str:
         add(f"goal({v},{x}).")
     add("% operators")
     eid = 0
+    scale = task.cost_scale()
     for o, op in enumerate(task.operators):
         uncond = {e.var: e.value for e in op.effects if not e.conditions}
         clash_uncond = any(
@@ -100,8 +101,8 @@ def task_facts(task: SASTask) -> str:
             add(f"% {o}: {op.name} never applicable (contradictory effects)")
             continue
         add(f"op({o}).  % {op.name}")
-        if op.cost:
-            add(f"cost({o},{op.cost}).")
+        if task.integer_cost(op.cost, scale):
+            add(f"cost({o},{task.integer_cost(op.cost, scale)}).")
         for v, x in op.pre:
             add(f"pre({o},{v},{x}).")
         cond_ids: list[tuple[int, int, int]] = []
@@ -123,6 +124,7 @@ def task_facts(task: SASTask) -> str:
         add("% costs of consecutive operator pairs")
         for (prev, o), c in sorted(task.pair_costs.items(), key=lambda kv: (kv[0][0] is not None, kv[0])):
             if c:
+                c *= scale
                 add(f"pcost0({o},{c})." if prev is None else f"pcost({prev},{o},{c}).")
     if task.axioms:
         add("% axioms")

@@ -37,6 +37,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from gnppdsl.compile.sas import SASTask
+from gnppdsl.logic.fd_guidance import guide
 from gnppdsl.logic.learned import LearnedConstraints
 from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, Plan, PlannerStats, PlanResult, Status
 from gnppdsl.logic.reformulation import forbid_plan, forbid_sequences
@@ -72,7 +73,7 @@ class FastDownwardPlanner(LearnedConstraints):
     exact mode (`IncrementalPlanner`)."""
 
     def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON, search: str = DEFAULT_SEARCH,
-                 binary: Path | None = None) -> None:
+                 binary: Path | None = None, guided: bool = True) -> None:
         binary = binary or downward_binary()
         if binary is None:
             raise RuntimeError("the Fast Downward planner needs the package up-fast-downward "
@@ -80,6 +81,7 @@ class FastDownwardPlanner(LearnedConstraints):
         self.task = task
         self.max_horizon = max_horizon
         self.search = search
+        self.guided = guided               # conflicts as redundant preconditions (fd_guidance)
         self.binary = binary
         self.stats = PlannerStats()
         LearnedConstraints.__init__(self)
@@ -130,14 +132,17 @@ class FastDownwardPlanner(LearnedConstraints):
         return Plan(tuple(ops), names, tuple(check.states), plan_cost(self.task, ops))
 
     def _run(self, horizon: int, time_limit: float | None) -> tuple[Status, list[int]]:
-        """Write the compiled task and run FD's search on it. Operators are renamed o<i> (the
-        plan maps back to indices even where names repeat or empty operators are left out) and
-        cost 1 each: the planner looks for short plans, and FD's `bound` cuts on real costs."""
+        """Write the compiled task (with `fd_guidance`'s copies) and run FD's search on it.
+        Operators are renamed `o<i> c<k>`, i the operator they copy (the plan maps back to indices
+        even where names repeat or empty operators are left out), and cost 1 each: the planner looks for short plans, and FD's `bound` cuts on real costs."""
         from gnppdsl.compile.sas_writer import write_sas
 
         t0 = time.perf_counter()
-        renamed = replace(self._compiled, operators=[replace(op, name=f"o{i}", cost=1)
-                                                     for i, op in enumerate(self._compiled.operators)])
+        task, origin = self._compiled, list(range(len(self._compiled.operators)))
+        if self.guided and self.conflicts:
+            task, origin = guide(task, self.conflicts)     # copies name the operator they copy
+        renamed = replace(task, operators=[replace(op, name=f"o{origin[k]} c{k}", cost=1)
+                                           for k, op in enumerate(task.operators)])
         text = write_sas(renamed)
         self.stats.ground_time += time.perf_counter() - t0
         self.stats.ground_calls += 1

@@ -16,6 +16,7 @@ limit, with a message for users; `PlanResult.unwrap()` raises `SolveFailure` whe
 from __future__ import annotations
 
 import enum
+import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Sequence
@@ -48,7 +49,7 @@ class Plan:
     operators: tuple[int, ...]
     names: tuple[str, ...]
     states: tuple[State, ...]
-    cost: int
+    cost: float
     shortest: bool = False   # proven: no shorter plan exists under the current constraints
     optimal: bool = False    # proven: no cheaper plan (up to the horizon / of this length)
 
@@ -335,21 +336,26 @@ class IncrementalPlanner(LearnedConstraints):
         return result
 
     def optimal_plan(self, horizon: int, time_limit: float | None = None,
-                     cost_bound: int | None = None) -> PlanResult:
+                     cost_bound: float | None = None) -> PlanResult:
         """The cheapest plan of length <= `horizon` (operator costs + pair costs).
 
         `plan.optimal` says whether clingo proved optimality before the time limit; a plan
         found before the limit is returned even when not proven. `cost_bound` admits only
         plans of cost <= the bound (clasp's initial optimisation bound, `--opt-mode=opt,B`):
         NO_PLAN then proves that no plan of length <= `horizon` costs that little (the anytime
-        search of `gnppdsl.solve.anytime` reads it as its proof of optimality).
+        search of `gnppdsl.solve.anytime` reads it as its proof of optimality). The bound is in
+        the task's cost units (`Operator.cost`); clasp sees it in the encoding's integers
+        (`SASTask.cost_scale`), widened by the rounding of up to `horizon` operator costs so
+        that no plan within the bound is cut.
         """
         start = time.perf_counter()
         deadline = self._deadline(time_limit)
         if self._extend_to(horizon, deadline):
             self._set_externals(query=horizon, cut=False, idle=True, minimize=True)
             if cost_bound is not None:
-                self._ctl.configuration.solve.opt_mode = f"opt,{int(cost_bound)}"
+                scale = self.task.cost_scale()
+                slack = 0.0 if scale == 1 else 0.5 * horizon
+                self._ctl.configuration.solve.opt_mode = f"opt,{math.floor(cost_bound * scale + slack + 1e-9)}"
             status, found, proven = self._solve(deadline)
         else:
             status, found, proven = Status.TIMEOUT, [], False

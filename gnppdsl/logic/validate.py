@@ -29,8 +29,9 @@ __all__ = ["State", "derive", "initial_state", "applicable", "fired_effects", "s
            "plan_cost", "find_sequence", "ValidationResult", "validate_plan"]
 
 
-def plan_cost(task: SASTask, ops: Sequence[int]) -> int:
-    """Sum of operator costs plus the pair costs of consecutive operators (None before the first)."""
+def plan_cost(task: SASTask, ops: Sequence[int]) -> float:
+    """Sum of operator costs plus the pair costs of consecutive operators (None before the first):
+    an int when every cost is one, else a float in the user's units."""
     total = 0
     prev: int | None = None
     for o in ops:
@@ -52,7 +53,7 @@ def find_sequence(states: Sequence[Sequence[int]], seq: Sequence[PartialState]) 
 class ValidationResult:
     valid: bool
     states: list[State] = field(default_factory=list)   # s_0 .. s_k (k = steps applied)
-    cost: int = 0
+    cost: float = 0
     error: str = ""                                      # human-readable reason when not valid
     failed_step: int | None = None                       # 1-based step whose operator failed
     conflict: tuple[int, int] | None = None              # (conflict index, offset i) that occurs

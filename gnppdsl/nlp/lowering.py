@@ -437,6 +437,9 @@ class BodyLowering:
     def __init__(self, slots: list, sigs: tuple[SlotSignature, ...], p, geometry: Geometry | None,
                  points: list = (), open_stops: bool = False):
         self.slots, self.sigs, self.p, self.geometry = slots, sigs, p, geometry
+        # the parameters' elements, split once: indexing a casadi symbol from Python
+        # (`p[i]`, SWIG overload resolution) costs tens of microseconds per element
+        self._p_items = ca.vertsplit(p) if isinstance(p, ca.SX) and p.numel() else []
         self.points = points            # symbols of `_Point` placeholders (group representatives)
         self._fk: dict[Call, Any] = {}  # one kinematic chain per equal fk(...) node (see lift)
         self._fk_rp: dict[Call, Any] = {}   # the same as (R, p), for distances
@@ -463,7 +466,9 @@ class BodyLowering:
 
     def expr(self, e: Any):
         if isinstance(e, _Param):
-            return self.p[e.index]
+            if not 0 <= e.index < len(self._p_items):
+                return self.p[e.index]          # casadi's own error for an index out of range
+            return self._p_items[e.index]
         if isinstance(e, _Point):
             return self.points[e.index]
         if isinstance(e, Num):

@@ -131,6 +131,7 @@ class Anytime(Coverage):
         task = replace(self.task, pair_costs={})
         costs = [op.cost for op in task.operators]
         c_min = min(costs, default=0)
+        integral = task.cost_scale() == 1
         planner = IncrementalPlanner(task, max_horizon=self.options.max_horizon)
         planner.add_conflicts(self.planner.conflicts)
         for ops in self.planner.blocked:
@@ -145,14 +146,16 @@ class Anytime(Coverage):
                     report.stopped = f"budget of {self.options.anytime:g} s used"
                     break
                 H, scope = self._horizon(report.cost, c_min, lb)
-                bound = None if lb is None else math.ceil(report.cost - lb - IMPROVEMENT * max(1.0, abs(report.cost))) - 1
+                below = report.cost - (lb or 0.0) - IMPROVEMENT * max(1.0, abs(report.cost))
+                # integer costs: the largest integer below; costs with decimals: the value itself
+                bound = None if lb is None else (math.ceil(below) - 1 if integral else below)
                 t0 = time.perf_counter()
                 res = planner.optimal_plan(H, time_limit=left, cost_bound=bound)
                 self.stats.logic_time += time.perf_counter() - t0
                 if res.status is Status.NO_PLAN:
                     if bound is not None:
                         report.proved_optimal, report.scope = True, scope
-                        report.stopped = f"no plan of {scope} has a lower bound below {report.cost:.6g}"
+                        report.stopped = f"no logical plan ({scope}) has a lower bound below {report.cost:.6g}"
                     else:
                         report.stopped = f"every plan of {scope} evaluated (objective without a known lower bound)"
                     break

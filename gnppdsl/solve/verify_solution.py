@@ -27,7 +27,8 @@ Checks (each failure a `Failure`: kind, step, waypoint, bodies, distance):
 - `grasp`: every held object's box contains the end-effector point and its narrow axis lies
   across the fingers, no wider than the gripper opening (3-D); planar: the gripper frame lies
   inside the object's footprint (its bounding circle);
-- `placement`: every object whose parent is a place rests on it (`resting_on`);
+- `placement`: every object whose parent is a place rests on it (`resting_on`); an object whose
+  parent is a tool a robot holds touches the tool and rests on a static body (a pushed block);
 - `plan` / `goal`: the plan is valid for the SAS+ task and reaches the goal
   (`gnppdsl.logic.validate`).
 """
@@ -254,6 +255,10 @@ def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, tolerance: 
                 why = _grasp_failure(ctx, o, To, w.matrix(p), gripper_opening, tolerance, planar_grasp)
                 if why:
                     fail(Failure("grasp", i, None, (o, p), None, f"of {o} by {p}: {why}"))
+            elif p in w.parents and w.parents[p] in sc.robots:
+                why = _riding_failure(ctx, o, To, p, w.matrix(p), rest_tolerance)
+                if why:
+                    fail(Failure("placement", i, None, (o, p), None, why))
             elif _shapeless(sc, p):
                 # a frame without a body (a planar spot): the object sits on that frame
                 off = float(np.linalg.norm((np.linalg.inv(w.matrix(p)) @ To)[:3, 3]))
@@ -313,6 +318,22 @@ def plan_failures(result: Any) -> list[Failure]:
     from gnppdsl.logic.validate import validate_plan
     v = validate_plan(task, plan)
     return [] if v else [Failure("goal" if v.error.startswith("goal") else "plan", detail=v.error)]
+
+
+def _riding_failure(ctx: Any, obj: str, To: np.ndarray, tool: str, Tt: np.ndarray,
+                    tol: float) -> str | None:
+    """An object whose parent is a tool a robot holds (a block pushed by a stick,
+    stdlib/tools.pntc) touches the tool and rests on a static scene body (it slides on the
+    table). None if so, else the reason. Why not `resting_on(obj, tool)`: the object is pushed
+    by the tool's end, it does not lie on top of it."""
+    touch = resting_on(ctx, obj, matrix_to_se3(To), tool, matrix_to_se3(Tt), tol=tol).distance
+    if touch > tol:
+        return f"{obj} rides on {tool} {touch:.4f} away from it"
+    sc = ctx.scene
+    if not any(resting_on(ctx, obj, matrix_to_se3(To), s, tol=tol).ok
+               for s, b in sc.objects.items() if b.static and not _shapeless(sc, s)):
+        return f"{obj} rides on {tool} but rests on no static body"
+    return None
 
 
 def _shapeless(sc: Any, name: str) -> bool:

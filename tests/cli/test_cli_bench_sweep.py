@@ -131,3 +131,24 @@ def test_csv_in_a_new_directory_is_created(tmp_path):
     path = tmp_path / "out" / "bench.csv"
     assert bench(SMALL[0], "--seeds", "1", "--algorithms", "oneway", "--csv", str(path)) == 0
     assert [r["status"] for r in read_rows(path)] == ["solved"]
+
+
+def test_bench_planner_reaches_the_solver(tmp_path, capsys):
+    pytest.importorskip("up_fast_downward", reason="up-fast-downward (optional external package) is not installed")
+    import yaml
+
+    expected = yaml.safe_load((PLANAR / "expected.yaml").read_text())["problems"]["p3_occupied"]
+    rows = {}
+    for planner in ("sequential", "fd"):
+        path = tmp_path / f"{planner}.csv"
+        assert bench(SMALL[1], "--seeds", "1", "--algorithms", "gnpp_trn", "--planner", planner,
+                     "--csv", str(path)) == 0
+        (rows[planner],) = read_rows(path)
+    assert capsys.readouterr().out.count("logic mode: planner") == 2
+    # sequential proves its first plan shortest: the bench's N0 is expected.yaml's; Fast Downward
+    # proves nothing about shorter plans, so its row has no N0 (docs/design.md, "Logic modes")
+    assert rows["sequential"]["N0"] == str(expected["n0"]) and rows["fd"]["N0"] == ""
+    assert all(r["status"] == "solved" and r["N"] == str(expected["n"]) for r in rows.values())
+    # Fast Downward cannot enumerate plans by length (One-way): refused before any run
+    assert bench(SMALL[1], "--seeds", "1", "--algorithms", "oneway,gnpp_trn", "--planner", "fd") == 2
+    assert "--planner fd serves the gnpp algorithms only, not oneway" in capsys.readouterr().err

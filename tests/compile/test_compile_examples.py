@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def _cases():
     out = []
-    for sub in ("planar", "lab", "mobile", "field"):
+    for sub in ("planar", "lab", "mobile", "field", "workshop"):
         exp = ROOT / "examples" / sub / "expected.yaml"
         if not exp.is_file():
             continue

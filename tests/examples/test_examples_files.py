@@ -15,7 +15,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from planar_reference import EXAMPLES, expected_comment, raw_scene  # noqa: E402
 
-DIRS = ["planar", "lab", "mobile", "field", "scalability"]
+DIRS = ["planar", "lab", "mobile", "field", "workshop", "scalability"]
 STDLIB = EXAMPLES.parent / "stdlib"
 
 
@@ -131,6 +131,6 @@ def test_lab_relaxations_are_appendix_c():
 
 
 def test_stdlib_modules_present():
-    for m in ("prelude", "planar", "manipulation", "panda"):
+    for m in ("prelude", "planar", "manipulation", "panda", "tools"):
         text = (STDLIB / f"{m}.pntc").read_text()
         assert re.search(rf"^module\s+{m}\b", _strip(text), re.M)

@@ -44,12 +44,14 @@ def _base(arm: str) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(*b["rpy"]), np.array(b["xyz"], float))
 
 
-def _ik(arm: str, target, rotation=None, restarts: int = 8, seed: int = 0) -> float:
-    """Smallest position (and orientation) error reached from home and random starts."""
+def _ik(arm: str, target, rotation=None, restarts: int = 8, seed: int = 0, scene: dict | None = None) -> float:
+    """Smallest position (and orientation) error reached from home and random starts (the
+    robot `arm` of `scene`, default the Lab's)."""
     rng = np.random.default_rng(seed)
-    base = _base(arm)
+    spec = (scene or SCENE)["robots"][arm]
+    base = pin.SE3(pin.rpy.rpyToMatrix(*spec["base"]["rpy"]), np.array(spec["base"]["xyz"], float))
     lo, hi = MODEL.lowerPositionLimit, MODEL.upperPositionLimit
-    home = np.array(SCENE["robots"][arm]["home"], float)
+    home = np.array(spec["home"], float)
     best = np.inf
     for k in range(restarts):
         q = home.copy() if k == 0 else rng.uniform(lo, hi)

@@ -558,7 +558,7 @@ def test_bool_combined_with_types(tmp_path):
 
 
 def test_negative_cost(tmp_path):
-    at(check(tmp_path, "action a(g: gripper) { cost 1.5 }\n"), 15, 29, "cost")
+    at(check(tmp_path, "action a(g: gripper) { cost -1.5 }\n"), 15, 29, "cost")
 
 
 def test_bad_waypoints(tmp_path):
@@ -673,3 +673,60 @@ def test_unused_rule_parameter_is_a_warning(tmp_path):
     assert (w.severity, w.kind, w.span.line, w.span.column) == ("warning", "unused", 15, 18)
     assert rep.ok and rep.summary() == "ok: 1 domain checked, 1 warning"
     assert "warning: parameter 'g' of rule 'r' is not used" in rep.render()
+
+
+@pytest.mark.parametrize("cost, col, word", [
+    ("norm(q(g))", 34, "continuous variable 'q'"),
+    ("norm(pos(world(g)))", 38, "world pose"),
+    ("[1, 2]", 29, "R[2]"),
+    ("norm(pos(pose0(g)) - pos(pose0(g))) - 1", None, None),   # not constant: checked when compiled
+])
+def test_cost_expressions(tmp_path, cost, col, word):
+    diags = check(tmp_path, f"action a(g: gripper) {{ cost {cost} }}\n")
+    if col is None:
+        assert not [d for d in diags if d.severity == "error"]
+        return
+    assert word in at(diags, 15, col, "cost").message
+
+
+def test_disjunctive_goal_and_its_misuses(tmp_path):
+    ok = check(tmp_path, problem="""\
+        problem p for d
+        objects { b1, b2 : block  s1 : place  g : gripper }
+        init { parent(b1) = s1  parent(b2) = s1 }
+        goal { parent(b1) = g or (parent(b2) = g and not free(g)), free(g) }
+        """)
+    assert [d for d in ok if d.severity == "error"] == []
+    d = check(tmp_path, problem="""\
+        problem p for d
+        objects { b1, b2 : block  s1 : place  g : gripper }
+        init { parent(b1) = s1 or parent(b1) = g  parent(b2) = s1 }
+        goal { parent(b1) = g or parent(b2) != g }
+        """)
+    assert "no `or`" in at(d, 3, 8, "init", "p.pntc").message
+    at(d, 4, 26, "goal", "p.pntc")
+    assert not [x for x in d if "no value" in x.message]      # no follow-up error for parent(b1)
+
+
+def test_travel_on_a_planar_scene(tmp_path):
+    scene = """\
+        name: s
+        dimension: 2
+        workspace: [[-1, -1], [1, 1]]
+        robots:
+          g: {kind: planar, home: [0, 0, 0], shape: {circle: 0.03}}
+        objects:
+          s1: {pose: [0.0, 0.0, 0.0]}
+          b1: {shape: {circle: 0.05}, pose: [0.0, 0.0, 0.0]}
+          b2: {shape: {circle: 0.05}, pose: [0.0, 0.0, 0.0]}
+        """
+    d = check(tmp_path, """\
+        action pick(o: block, g: gripper) { pre holding(g) = none  eff holding(g) := o }
+        reachability left {
+          robot = g
+          heuristic pick(o, g) : travel(g, o)
+        }
+        """, problem=PROBLEM.replace("problem p for d\n", 'problem p for d\nscene "s.yaml"\n'),
+        files={"s.yaml": scene})
+    x = at(d, 18, 3, "scene", "domain.pntc")
+    assert "travel" in x.message and "planar" in x.message

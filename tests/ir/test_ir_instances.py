@@ -87,10 +87,13 @@ def test_bench_runs_a_planar_family_with_every_solution_verified(tmp_path, capsy
     (tmp_path / "p1_one_block.yaml").write_text(family)
     out = tmp_path / "family.csv"
     assert main(["bench", str(tmp_path / "p1_one_block.pntc"), "--algorithms", "gnpp", "--instances", "3",
-                 "--seed", "5", "--time-limit", "30", "--csv", str(out), "--quiet"]) == 0
+                 "--seed", "5", "--time-limit", "30", "--anytime", "10", "--csv", str(out), "--quiet"]) == 0
     rows = list(csv.DictReader(open(out, newline="")))
     assert [r["instance"] for r in rows] == ["5", "6", "7"] and all(r["seed"] == "0" for r in rows)
     assert all(r["solved"] == "True" and r["verified"] == "True" and r["steps"] == "2" for r in rows)
+    # with --anytime: two actions, no objective, and no cheaper plan (a plan of one action
+    # cannot move the block into the region)
+    assert all(r["proved_optimal"] == "True" and float(r["cost"]) == 2.0 for r in rows)
     table = capsys.readouterr().out
     assert "base[m] where all solved" in table and "3/3" in table
     # the spot of instance 6, where its block starts, is the one `gnpp solve --instance 6` reports

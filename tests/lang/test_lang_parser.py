@@ -252,6 +252,20 @@ def test_keyword_in_space_separated_tags_hint():
     assert "tags robot, traj" in d.hint
 
 
+def test_or_and_in_a_list_of_facts_hint():
+    (d,) = syntax_errors("domain d\naction a(g: g) {\n  pre free(g) or full(g)\n}\n")
+    assert (d.span.line, d.span.column) == (3, 15) and "derived NAME(...) := a or b" in d.hint
+    (d,) = syntax_errors("domain d\nrule r(g: g) : free(g) and full(g) => t(g)\n")
+    assert (d.span.line, d.span.column) == (2, 24) and "separated by `,`" in d.hint
+
+
+def test_goal_facts_combine_with_or_and_parentheses():
+    (f,) = items("goal { a(x) = y or (b(x) and not c(x)), d(x) }\n", header="problem p for d\n")
+    first, second = f.lits
+    assert type(first).__name__ == "FOr" and type(first.items[1]).__name__ == "FAnd"
+    assert type(second).__name__ == "Lit"
+
+
 def test_missing_header():
     (d,) = syntax_errors("type a\n")
     assert (d.span.line, d.span.column) == (1, 1)
