@@ -5,6 +5,11 @@ the verification after the active set's repair (`--no-active-set`: without it) c
 
     python benchmarks/bench_lab.py [--seeds 10] [--time-limit 100] [--problems lab1 lab3]
                                    [--order full_first|relaxed_first|staged]
+
+--order, measured on seed 0: lab4 full_first not solved in 400 s (each infeasible full graph,
+cold-started, cost 60-145 s before the relaxations found its conflict in 1-3 s), staged solved
+in 60 s; lab3: relaxed_first 13 s vs full_first 37 s; lab1: relaxed_first timed out
+(trajectories warm-started from a relaxation without time consistency).
 """
 from __future__ import annotations
 
@@ -12,12 +17,12 @@ import argparse
 import statistics
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import yaml
 
-from gnppdsl.cli.solver_args import add_curvature_argument   # light imports
+from gnppdsl.cli.solver_args import (add_active_set_argument, add_curvature_argument,  # light imports
+                                     add_jit_argument, add_order_argument)
 
 ROOT = Path(__file__).resolve().parents[1]
 LAB = ROOT / "examples" / "lab"
@@ -40,18 +45,10 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--time-limit", type=float, default=100.0)
     ap.add_argument("--problems", nargs="*", default=None, help="e.g. lab1 lab3 (default: all)")
-    ap.add_argument("--order", default=None, choices=["full_first", "relaxed_first", "staged"],
-                    help="Alg. 1 order (default: the domain's solver block, staged for the Lab). "
-                         "Measured on seed 0, lab4: full_first not solved in 400 s (each infeasible "
-                         "full graph, cold-started, cost 60-145 s before the relaxations found its "
-                         "conflict in 1-3 s), staged solved in 60 s; lab3: relaxed_first 13 s vs "
-                         "full_first 37 s; lab1: relaxed_first timed out (trajectories warm-started "
-                         "from a relaxation without time consistency)")
-    ap.add_argument("--jit", action=argparse.BooleanOptionalAction, default=None,
-                    help="--jit: large derivative kernels compiled to C during the solve, cached on "
-                         "disk (the first run on a machine compiles them: its CPU time includes the C "
-                         "compiler's; with a warm cache nothing is compiled); default off, so that no "
-                         "run's time depends on what background compilers have finished")
+    add_order_argument(ap)       # the default: the domain's solver block, staged for the Lab (see above)
+    add_jit_argument(ap, default="off in this benchmark, so that no run's time depends on what "
+                                 "background compilers have finished (the first run on a machine "
+                                 "compiles the kernels: its CPU time includes the C compiler's)")
     add_curvature_argument(ap)
     ap.add_argument("--fresh-templates", action="store_true",
                     help="compile the factor templates again for every seed (default: compiled by "
@@ -63,10 +60,7 @@ def main(argv=None) -> int:
     ap.add_argument("--domain", default=None, metavar="FILE",
                     help="solve the problems on this domain file instead of examples/lab/domain.pntc "
                          "(e.g. the domain before a change, for a side-by-side run)")
-    ap.add_argument("--active-set", action=argparse.BooleanOptionalAction, default=True,
-                    help="a solution the verification rejects is repaired by the active set "
-                         "(SolveOptions.active_set, as `gnpp solve` does); --no-active-set: it ends "
-                         "as verification_failed and counts as a failure")
+    add_active_set_argument(ap, default=True)
     args = ap.parse_args(argv)
 
     from gnppdsl.geometry import native
@@ -75,6 +69,9 @@ def main(argv=None) -> int:
     from gnppdsl.solve.loop import solve_compiled
     from gnppdsl.solve.options import SolveOptions
 
+    # what the options change, given to SolveOptions.from_settings (None: the problem's setting)
+    overrides = dict(order=args.order, jit=bool(args.jit), distance_curvature=args.distance_curvature,
+                     lazy_search=args.lazy_search, active_set=args.active_set)
     expected = yaml.safe_load((LAB / "expected.yaml").read_text())["problems"]
     names = args.problems or sorted(expected)
     rows = []
@@ -84,15 +81,11 @@ def main(argv=None) -> int:
         runs = []
         for seed in range(args.seeds):
             opts = SolveOptions.from_settings(comp.problem.settings, seed=seed, time_limit=args.time_limit,
-                                              order=args.order,
-                                              jit=args.jit if args.jit is not None else False,
-                                              distance_curvature=args.distance_curvature)
-            if args.lazy_search is not None:
-                opts = replace(opts, lazy_search=args.lazy_search)
+                                              **overrides)
             if args.fresh_templates:
                 comp.compilers.clear()
             w0 = time.perf_counter()
-            r = solve_compiled(comp, replace(opts, active_set=args.active_set))
+            r = solve_compiled(comp, opts)
             cpu, wall = r.stats.cpu_time, time.perf_counter() - w0     # cpu: with the C compiler's
             ok = r.status == "solved"                 # verified by the loop (`gnppdsl.solve.coverage`)
             why = r.message if not ok else ""
@@ -105,9 +98,7 @@ def main(argv=None) -> int:
                   file=sys.stderr, flush=True)
         rows.append((name, spec, runs))
 
-    base = SolveOptions.from_settings(comp.problem.settings, order=args.order,
-                                      jit=args.jit if args.jit is not None else False,
-                                      distance_curvature=args.distance_curvature)
+    base = SolveOptions.from_settings(comp.problem.settings, **overrides)
     print(f"Lab benchmark: {args.seeds} seeds, time limit {args.time_limit:g} s, order {base.order}, "
           f"jit {jit.mode(base.jit)}, distance curvature {'on' if base.distance_curvature else 'off'}, "
           f"distance queries {native.describe()}, solutions verified with pinocchio + coal (CPU s of "

@@ -24,6 +24,11 @@ from gnppdsl.errors import UserError
 #: the largest .pntc / scene / URDF file read (bytes); the bundled Lab domain is 9 KB, the
 #: Panda URDF 20 KB: 8 MiB leaves room for generated problems with thousands of objects
 MAX_INPUT_BYTES = 8 * 1024 * 1024
+#: the largest `.pntc` source read (bytes): parsing costs about 25 us of CPU per byte of
+#: dense tokens (a 400 KB one-line fuzz mutant took 10 s to parse and 13 s to check), so a
+#: source this size is checked in about 6 s; the largest bundled `.pntc` is under 20 KB, and
+#: 256 KiB still holds problems with several thousand objects
+MAX_SOURCE_BYTES = 256 * 1024
 
 SOURCE_SUFFIXES = (".pntc",)
 SCENE_SUFFIXES = (".yaml", ".yml")
@@ -34,9 +39,10 @@ class InputError(UserError):
     """A file that cannot be used as input. `line`/`column` locate a decoding error inside it."""
 
     def __init__(self, message: str, line: int | None = None, column: int | None = None,
-                 text: str | None = None) -> None:
+                 text: str | None = None, too_large: bool = False) -> None:
         super().__init__(message)
         self.message = message
+        self.too_large = too_large  # the file itself is at fault (reported at its 1:1)
         self.line = line
         self.column = column
         self.text = text            # the file decoded with replacement characters (for the echo)
@@ -79,7 +85,8 @@ def read_bytes(path: str | Path, max_bytes: int | None = None) -> bytes:
             what = next((w for test, w in _KINDS if test(st.st_mode)), "not a regular file")
             raise InputError(f"{what}, not a regular file")
         if st.st_size > max_bytes:
-            raise InputError(f"{st.st_size:,} bytes, larger than the limit of {max_bytes:,} bytes")
+            raise InputError(f"{st.st_size:,} bytes, larger than the limit of {max_bytes:,} bytes",
+                             too_large=True)
         chunks = []
         total = 0
         while True:                      # a file growing while read is still bounded
@@ -89,7 +96,7 @@ def read_bytes(path: str | Path, max_bytes: int | None = None) -> bytes:
             chunks.append(chunk)
             total += len(chunk)
             if total > max_bytes:
-                raise InputError(f"larger than the limit of {max_bytes:,} bytes")
+                raise InputError(f"larger than the limit of {max_bytes:,} bytes", too_large=True)
         return b"".join(chunks)
     except OSError as exc:
         raise InputError(describe_os_error(exc)) from None

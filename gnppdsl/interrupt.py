@@ -47,7 +47,7 @@ class Interrupted(BaseException):
         return "time limit reached" if self.reason == "time_limit" else f"interrupted by {self.reason}"
 
 
-_state = {"reason": None, "raise_now": 0, "installed": False, "last": None}
+_state = {"reason": None, "raise_now": 0, "installed": False, "last": None, "early": None}
 
 
 def pending() -> str | None:
@@ -109,6 +109,46 @@ def _handler(signum, frame) -> None:  # noqa: ARG001 - the signal module's signa
     request("time_limit" if signum == signal.SIGALRM else signal.Signals(signum).name)
 
 
+def _early_handler(signum, frame) -> None:  # noqa: ARG001
+    if _state["reason"] is None:
+        _state["reason"] = signal.Signals(signum).name
+
+
+def early() -> None:
+    """From the process's start (`gnpp` builds its parser, 0.6 s of imports under load) until
+    a command installs `handlers()` or `release_early()` is called, SIGINT and SIGTERM are
+    only recorded: measured with benchmarks/bench_signals.py, a SIGTERM in that window ended
+    the process with -15, no message and no `--json`. Main thread only."""
+    if threading.current_thread() is not threading.main_thread() or _state["early"] is not None:
+        return
+    _state["early"] = {s: signal.signal(s, _early_handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def release_early(keep: bool) -> str | None:
+    """The previous handlers back. A request recorded meanwhile is returned; with `keep`
+    (a command about to enter `handlers()`, which acts on it at its first `check()`) it stays
+    pending, otherwise it is cleared and the caller ends the command."""
+    saved = _state["early"]
+    if saved is None:
+        return None
+    _state["early"] = None
+    for s, h in saved.items():
+        signal.signal(s, h)
+    reason = _state["reason"]
+    if not keep:
+        clear()
+    _state["carried"] = keep and reason is not None
+    return reason
+
+
+def drop_carried() -> None:
+    """Forget a request `release_early(keep=True)` kept that no `handlers()` took over (the
+    command failed before its run): it must not stop the next command of this process."""
+    if _state.get("carried"):
+        _state["carried"] = False
+        clear()
+
+
 @contextmanager
 def handlers() -> Iterator[None]:
     """SIGINT, SIGTERM and SIGALRM handled as above for the duration of the block (the CLI's
@@ -117,7 +157,10 @@ def handlers() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    carried = _state["reason"] if _state.get("carried") else None   # a request from `early()`
     clear()
+    _state["reason"] = carried
+    _state["carried"] = False
     _state["last"] = None
     old = {s: signal.signal(s, _handler) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)}
     _state["installed"] = True

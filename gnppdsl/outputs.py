@@ -31,13 +31,33 @@ def _reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
 
+def _no_nul(path: str | Path, what: str) -> Path:
+    p = Path(os.fspath(path))
+    if "\0" in str(p):
+        raise UserError(f"{what}: the path contains a NUL byte")
+    return p
+
+
+def _lstat_not_a_link(p: Path, what: str, doing: str) -> os.stat_result | None:
+    """What is at `p` (not following a link), None if nothing; a symbolic link or an
+    unreadable name is refused (`doing` prefixes the OS reason). The one place both writers,
+    files (`check_target`) and directories (`output_dir`), refuse links."""
+    try:
+        st = os.lstat(p)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise UserError(f"{what} {p}: {doing}{_reason(exc)}") from None
+    if stat.S_ISLNK(st.st_mode):
+        raise UserError(f"{what} {p}: is a symbolic link; gnpp does not write through links")
+    return st
+
+
 def check_target(path: str | Path, what: str, parent_may_be_missing: bool = False) -> Path:
     """`path` as a place to write a file: its directory exists (unless
     `parent_may_be_missing`: the caller creates it), and the name is free or a regular file
     (not a symbolic link, directory, FIFO or device). Nothing is created."""
-    p = Path(os.fspath(path))
-    if "\0" in str(p):
-        raise UserError(f"{what}: the path contains a NUL byte")
+    p = _no_nul(path, what)
     parent = p.parent if str(p.parent) else Path(".")
     try:
         if not stat.S_ISDIR(os.stat(parent).st_mode):
@@ -48,14 +68,9 @@ def check_target(path: str | Path, what: str, parent_may_be_missing: bool = Fals
         raise UserError(f"{what} {p}: directory {parent} does not exist") from None
     except OSError as exc:
         raise UserError(f"{what} {p}: {_reason(exc)}") from None
-    try:
-        st = os.lstat(p)
-    except FileNotFoundError:
+    st = _lstat_not_a_link(p, what, "")
+    if st is None:
         return p
-    except OSError as exc:
-        raise UserError(f"{what} {p}: {_reason(exc)}") from None
-    if stat.S_ISLNK(st.st_mode):
-        raise UserError(f"{what} {p}: is a symbolic link; gnpp does not write through links")
     if not stat.S_ISREG(st.st_mode):
         raise UserError(f"{what} {p}: exists and is not a regular file")
     return p
@@ -115,21 +130,14 @@ def write_atomic(path: str | Path, data: str | bytes, what: str, mode: int = 0o6
 def output_dir(path: str | Path, what: str) -> Path:
     """A directory to write into (`--render DIR`, `compile -o DIR`), created if missing; a
     symbolic link or a file at that name is refused."""
-    p = Path(os.fspath(path))
-    if "\0" in str(p):
-        raise UserError(f"{what}: the path contains a NUL byte")
-    try:
-        st = os.lstat(p)
-    except FileNotFoundError:
+    p = _no_nul(path, what)
+    st = _lstat_not_a_link(p, what, "cannot create the directory: ")
+    if st is None:
         try:
             p.mkdir(parents=True)
         except OSError as exc:
             raise UserError(f"{what} {p}: cannot create the directory: {_reason(exc)}") from None
         return p
-    except OSError as exc:
-        raise UserError(f"{what} {p}: cannot create the directory: {_reason(exc)}") from None
-    if stat.S_ISLNK(st.st_mode):
-        raise UserError(f"{what} {p}: is a symbolic link; gnpp does not write through links")
     if not stat.S_ISDIR(st.st_mode):
         raise UserError(f"{what} {p}: exists and is not a directory")
     return p

@@ -187,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1, help="worker processes (the cases are the same)")
     ap.add_argument("--max-seconds", type=float, default=0.0,
                     help="stop starting cases after this long (0: run them all); the report counts the cases run")
+    ap.add_argument("--save", type=Path, default=None,
+                    help="write each hanging or failing mutant to this directory (to reproduce and profile it)")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="gnpp-fuzz-cache-")   # keep ~/.cache clean
@@ -201,20 +203,32 @@ def main(argv: list[str] | None = None) -> int:
         p.start()
         return p, a
 
+    def save(group: str, job, why: str) -> None:
+        if args.save is None:
+            return
+        args.save.mkdir(parents=True, exist_ok=True)
+        k = sum(counts[g]["cases"] for g in counts)
+        name = f"s{args.seed}-{k:05d}-{why}-{job[0]}-{job[3]}-{job[1]}"
+        (args.save / name).write_bytes(job[2])
+
     def record(group: str, job, res) -> None:
         c = counts[group]
         if res is None:
             c["hang"] += 1
             kinds[f"hang: {job[0]}/{job[1]}"] += 1
+            save(group, job, "hang")
             return
         if res["uncaught"]:
             c["uncaught"] += 1
             kinds[res["uncaught"]] += 1
+            save(group, job, "uncaught")
         if res["unlocated"]:
             c["unlocated"] += 1
             kinds["unlocated: " + re.sub(r"/tmp/\S+/", "", res.get("example", ""))[:80]] += 1
+            save(group, job, "unlocated")
         if res["size"] > OVERSIZED:
             c["oversized"] += 1
+            save(group, job, "oversized")
 
     workers = [start() for _ in range(max(1, args.workers))]
     busy: dict[int, tuple] = {}              # worker index -> (group, job, started)

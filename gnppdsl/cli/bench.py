@@ -268,7 +268,8 @@ def run(args: argparse.Namespace) -> int:
             inst = "" if row.get("instance") in (None, "") else f" instance {row['instance']}"
             status.print_row(f"{row['problem']:16s} {row['algorithm']:10s}{inst} seed {row['seed']}: {row['status']:14s} "
                              f"NLP {row.get('nlp_solves') or 0:4} cpu {float(row.get('cpu_time') or 0):6.2f} s "
-                             f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}")
+                             f"wall {float(row.get('total_time') or 0):6.2f} s  N0 {row.get('N0')} N {row.get('N')}",
+                             row)
 
     def on_error(file: str, err: Exception) -> None:
         print(f"gnpp bench: skipping {file}:\n{err}", file=sys.stderr)
@@ -282,7 +283,10 @@ def run(args: argparse.Namespace) -> int:
                 run_on_ray(todo, settings, on_row, workers=args.workers if not args.address else None,
                            address=args.address)
             elif todo:
-                run_serial(todo, settings, on_row, on_error)
+                run_serial(todo, settings, on_row, on_error, progress_for=(
+                    (lambda c: status.run_progress(f"{Path(c.file).stem} {c.algorithm} seed {c.seed}"
+                                                   + ("" if c.instance is None else f" instance {c.instance}")))
+                    if status is not None else None))
     finally:
         if journal:
             journal.close()

@@ -73,8 +73,20 @@ def _leave_now(code: int) -> None:
 
 
 def _main(argv: list[str] | None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    from gnppdsl import interrupt
+
+    interrupt.early()            # a signal while the parser's imports run: recorded, not fatal
+    args = None
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    finally:
+        # `gnpp solve` acts on a recorded request inside its own handlers (status interrupted,
+        # --json written); any other command ends here with the signal's exit status
+        stopped = interrupt.release_early(keep=args is not None and args.command == "solve")
+    if stopped is not None and args.command != "solve":
+        print(f"gnpp: {interrupt.Interrupted(stopped).describe()}", file=sys.stderr)
+        return interrupt.EXIT_CODES.get(stopped, 130)
     if args.command is None:
         parser.print_help()
         return 2
@@ -93,6 +105,8 @@ def _main(argv: list[str] | None) -> int:
         # the reader went away (`gnpp ... | head`): stop quietly, as the Unix tools do
         _silence_stdout()
         return 0
+    finally:
+        interrupt.drop_carried()     # a request `solve` did not reach its handlers with
 
 
 def _silence_stdout() -> None:

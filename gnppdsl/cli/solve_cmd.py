@@ -13,9 +13,9 @@ import time
 from dataclasses import replace
 
 from gnppdsl.cli.outputs import make_parent
-from gnppdsl.cli.solver_args import (add_curvature_argument, add_jit_argument,   # light imports
-                                     add_order_argument, add_planner_argument, check_outputs,
-                                     check_ranges)
+from gnppdsl.cli.solver_args import (add_active_set_argument, add_curvature_argument,  # light imports
+                                     add_jit_argument, add_order_argument, add_planner_argument,
+                                     check_outputs, check_ranges)
 from gnppdsl.solve.result import INTERRUPTED   # light (dataclasses only)
 
 
@@ -39,11 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--db", default=None, metavar="PATH",
                         help="persist the database of solved subgraphs in this SQLite file "
                              "(implies switch g); a later run on the same domain starts from it")
-    parser.add_argument("--active-set", action=argparse.BooleanOptionalAction, default=None,
-                        help="every solution is verified independently (pinocchio + coal); with the "
-                             "active set (default) the pairs it finds near join the plan's NLP until "
-                             "the verification is clean; --no-active-set: a rejected solution ends the "
-                             "solve as verification_failed")
+    add_active_set_argument(parser)
     parser.add_argument("--json", default=None, metavar="FILE", help="write the full result as JSON")
     parser.add_argument("--render", default=None, metavar="DIR", help="render the keyframes of the solution as images")
     parser.add_argument("--view", action="store_true",

@@ -32,6 +32,16 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "`distance_curvature`, else on")
 
 
+def add_active_set_argument(parser: argparse.ArgumentParser, default: bool | None = None) -> None:
+    """`--active-set / --no-active-set` (`SolveOptions.active_set`), as `gnpp solve` and
+    benchmarks/bench_lab.py give it."""
+    parser.add_argument("--active-set", action=argparse.BooleanOptionalAction, default=default,
+                        help="every solution is verified independently (pinocchio + coal); with the "
+                             "active set (default) the pairs it finds near join the plan's NLP until "
+                             "the verification is clean; --no-active-set: a rejected solution ends the "
+                             "solve as verification_failed (and counts as a failure in a benchmark)")
+
+
 def add_planner_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--planner", choices=SOLVER_PLANNERS, default=None,
                         help="logic mode: auto (clingo's shortest plans while cheap, Fast Downward once "

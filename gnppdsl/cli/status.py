@@ -121,8 +121,10 @@ class SolveStatus(StatusLine):
 
 
 class BenchStatus(StatusLine):
-    """`gnpp bench`: runs done of all, the last run, time so far; a terminal line or nothing
-    extra (the per-run lines bench prints are the plain form)."""
+    """`gnpp bench`: runs done of all and the time left, the plans and NLPs of the run in
+    progress (live, through `run_progress`, when runs are solved in this process) and per
+    finished run (from the rows: what a run costs, also with Ray where only rows come back).
+    A terminal line or nothing extra (the per-run lines bench prints are the plain form)."""
 
     def __init__(self, total: int, stream: TextIO | None = None, tty: bool | None = None,
                  interval: float = 0.5) -> None:
@@ -130,21 +132,65 @@ class BenchStatus(StatusLine):
         self.total = total
         self.done = 0
         self.last = ""
+        self.plans = 0                         # sums over the finished runs' rows
+        self.nlps = 0
+        self.counted = 0                       # runs whose rows were given
+        self.current: _RunProgress | None = None
+
+    def run_progress(self, label: str) -> "_RunProgress":
+        """The `progress` callback of the run about to start (`solve_problem(progress=...)`)."""
+        self.current = _RunProgress(self, label)
+        return self.current
 
     def text(self) -> str:
         elapsed = time.perf_counter() - self.t0
         eta = ""
         if 0 < self.done < self.total:
             eta = f", about {elapsed / self.done * (self.total - self.done):.0f} s left"
-        return f"bench: {self.done} of {self.total} runs{(' · last ' + self.last) if self.last else ''} · {elapsed:.0f} s{eta}"
+        parts = [f"bench: {self.done} of {self.total} runs"]
+        if self.current is not None:
+            parts.append(self.current.text())
+        elif self.last:
+            parts.append("last " + self.last)
+        if self.counted:
+            parts.append(f"per run {self.plans / self.counted:.1f} plans, {self.nlps / self.counted:.1f} NLPs")
+        return " · ".join(parts) + f" · {elapsed:.0f} s{eta}"
 
-    def print_row(self, text: str) -> None:
-        """A finished run's line, printed above the status line."""
+    def print_row(self, text: str, row: dict | None = None) -> None:
+        """A finished run's line, printed above the status line; `row` (the CSV row) adds its
+        plans and NLPs to the per-run figures."""
         self.done += 1
         self.last = text.split(":")[0].strip()
+        if row is not None:
+            self.counted += 1
+            self.plans += int(row.get("plans") or 0)
+            self.nlps += int(row.get("nlp_solves") or 0)
+        self.current = None
         with self._lock:
             self._clear()
             self.stream.write(text + "\n")
             if self.tty:
                 self._draw()
             self.stream.flush()
+
+
+class _RunProgress:
+    """The solver's `progress` for one bench run: the live `Stats` (plans, NLPs) it is given
+    by `watch`, redrawn on the bench line at each solver message."""
+
+    def __init__(self, owner: BenchStatus, label: str) -> None:
+        self.owner, self.label, self.stats = owner, label, None
+
+    def watch(self, stats: Any) -> None:
+        self.stats = stats
+
+    def __call__(self, msg: str) -> None:  # noqa: ARG002 - the counters live in `stats`
+        if self.owner.tty:
+            with self.owner._lock:
+                self.owner._draw()
+
+    def text(self) -> str:
+        s = self.stats
+        if s is None:
+            return f"now {self.label}"
+        return f"now {self.label}: plans {s.plans}, NLPs {s.nlp_solves}"

@@ -192,8 +192,9 @@ def row_key(row: dict) -> tuple[str, str, str, str]:
 
 # ------------------------------------------------------------------ running one cell
 
-def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
-    """Run one cell in this process and return its row (a refused problem or option: an error row)."""
+def solve_cell(cell: Cell, settings: RunSettings, compiled=None, progress=None) -> dict:
+    """Run one cell in this process and return its row (a refused problem or option: an error
+    row); `progress` is the solver's progress callback (the bench status line's live counters)."""
     import gnppdsl                      # the public API: the command line solves through it
     from gnppdsl.cli.algorithms import parse_algorithms
 
@@ -210,7 +211,7 @@ def solve_cell(cell: Cell, settings: RunSettings, compiled=None) -> dict:
         # every run compiles its own templates: runs share nothing, so no algorithm or seed is
         # timed with the templates an earlier one compiled
         compiled.compilers.clear()
-        return result_row(cell, gnppdsl.solve_problem(compiled, options))
+        return result_row(cell, gnppdsl.solve_problem(compiled, options, progress=progress))
     except UserError as err:
         name = getattr(getattr(compiled, "problem", None), "name", "")
         return failure_row(cell, RUN_ERROR, str(err), problem=name)
@@ -254,8 +255,10 @@ def solve_cell_isolated(cell: Cell, settings: RunSettings) -> dict:
 # ------------------------------------------------------------------ executors
 
 def run_serial(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict], None],
-               on_error: Callable[[str, UserError], None]) -> None:
-    """Every cell in this process, each problem (instance) loaded and compiled once (no Ray needed)."""
+               on_error: Callable[[str, UserError], None],
+               progress_for: Callable[[Cell], Callable[[str], None]] | None = None) -> None:
+    """Every cell in this process, each problem (instance) loaded and compiled once (no Ray
+    needed); `progress_for(cell)` gives each run's progress callback (live plans / NLPs)."""
     import gnppdsl
 
     by_file: dict[tuple[str, int | None], list[Cell]] = {}
@@ -270,7 +273,7 @@ def run_serial(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict]
                 on_row(failure_row(c, RUN_ERROR, str(err)))
             continue
         for c in group:
-            on_row(solve_cell(c, settings, compiled))
+            on_row(solve_cell(c, settings, compiled, progress_for(c) if progress_for else None))
 
 
 def run_on_ray(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict], None],

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.compile.ground import GroundRule, RuleMatcher, error_at, var_name
+from gnppdsl.compile.ground import GroundRule, RuleMatcher, compare_holds, error_at, var_name
 from gnppdsl.compile.sas import PartialState, SASTask
 from gnppdsl.compile.semantics import derive
 from gnppdsl.errors import UserError
@@ -161,6 +161,40 @@ class GraphNLPFactory:
         ctx = _Ctx(full, step, where=f"world({obj}) at step {step}")
         expr = self._world(obj, ctx, acc, Obj(obj))
         return expr, tuple(self._var_instance(key, None) for key in acc.slots)
+
+    def rule_factors(self, states: Sequence[Sequence[int]],
+                     wanted: Sequence[tuple[str, tuple[tuple[str, str], ...], int]]) -> list[FactorInstance]:
+        """The factor instances `factors(states)` holds for the ground rules `wanted` = (rule
+        name, binding items in parameter order, step), each only if its pattern holds there;
+        without matching every other rule (lifted conflicts check a few renamed rules,
+        `gnppdsl.conflicts.lifting`)."""
+        full = [derive(self.task, s) for s in states]
+        n = len(full) - 1
+        index = {rule.name: r for r, rule in enumerate(self.rules.rules)}
+        out: list[FactorInstance] = []
+        for name, binding, i in wanted:
+            r = index.get(name)
+            if r is None or not 0 <= i <= n:
+                continue
+            rule = self.rules.rules[r]
+            if rule.kind == "transition" and i == n:
+                continue
+            key = (r, tuple(binding))
+            b = dict(binding)
+            # what `RuleMatcher.matching` requires of a binding besides the pattern: the
+            # parameters' types and the `where` guards (`a < b`, `r != r2`)
+            if [p.name for p in rule.params] != list(b) or \
+                    any(b[p.name] not in self.rules.domains[r][p.name] for p in rule.params) or \
+                    not all(compare_holds(self.problem, g, b) for g in rule.where):
+                continue
+            gr = self.rules._rule(r, key)
+            if gr is None or not gr.pre.holds_in(full[i]) or (gr.post is not None and not gr.post.holds_in(full[i + 1])):
+                continue
+            for c, call in enumerate(gr.calls):
+                fi, _ = self._cached_instance(key, c, gr, call, full, i)
+                if fi is not None:
+                    out.append(fi)
+        return out
 
     def _factors(self, states) -> tuple[list[FactorInstance], list[FactorInstance]]:
         states = [derive(self.task, s) for s in states]

@@ -164,8 +164,12 @@ class SubgraphDatabase:
             conn = sqlite3.connect(str(path), timeout=30.0)
             if fresh:
                 # identity first, in rollback-journal mode, so it is in the main file's header
-                # (not only in a WAL a kill -9 could leave behind) before any record exists
+                # (not only in a WAL a kill -9 could leave behind) before any record exists; one
+                # explicit transaction, so another process reading the header sees both ids or
+                # neither (each PRAGMA committed on its own: a process starting at the same
+                # moment read application_id without user_version and refused the file)
                 with conn:
+                    conn.execute("BEGIN IMMEDIATE")
                     conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
                     conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
                     for stmt in filter(str.strip, _SCHEMA.split(";")):

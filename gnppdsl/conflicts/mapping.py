@@ -46,11 +46,19 @@ def factors_of(subgraph: Any) -> tuple[FactorInstance, ...]:
 
 
 def step_range(factors: Iterable[FactorInstance]) -> tuple[int, int]:
-    """(first, last) absolute step that the generators of `factors` refer to."""
+    """(first, last) absolute step that the generators of `factors` refer to, `last` extended
+    to the step each factor needs to *exist*: a trajectory variable at step i (the motion
+    i -> i+1) exists only when step i + 1 does (the factory leaves its factors out at the plan's
+    last step), so a factor on it is generated only by plans that go on after step i. Without
+    the extension a conflict found inside a plan would also forbid plans in which its partial
+    states hold at the very end, whose graph-NLPs lack those factors (Prop. 7.1 needs every
+    matching plan to contain the subgraph); the extra step is an empty partial state."""
+    factors = list(factors)
     steps = [f.step + j for f in factors for j in range(len(f.generator))]
     if not steps:
         raise ValueError("a subgraph without factors maps to no partial states")
-    return min(steps), max(steps)
+    needed = [v.step + (1 if v.waypoints else 0) for f in factors for v in f.variables]
+    return min(steps), max(steps + needed)
 
 
 def to_partial_states(subgraph: Any) -> tuple[PartialState, ...]:

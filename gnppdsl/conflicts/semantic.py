@@ -93,6 +93,54 @@ def factor_label(f: FactorInstance, object_key: ObjectKey | None = None) -> str:
     return label
 
 
+def anonymous_text(body: Any, object_key: ObjectKey) -> str:
+    """A canonical text of a resolved body in which every object with geometry is named by its
+    identity (`object_key`: shape, robot model) instead of its name; numbers (folded scene
+    poses, sizes, margins) stay exact. Two bodies with equal texts compute the same function of
+    their slots, whichever objects they were instantiated for: the label of `anonymous_graph`."""
+    if isinstance(body, Obj):
+        key = object_key(body.name)
+        return f"Obj({body.name})" if key == "-" else f"Obj#{key}"
+    if isinstance(body, (tuple, list)):
+        return "(" + ",".join(anonymous_text(e, object_key) for e in body) + ")"
+    if hasattr(body, "__dataclass_fields__"):
+        fields = ",".join(f"{n}={anonymous_text(getattr(body, n), object_key)}"
+                          for n in body.__dataclass_fields__ if n != "span")
+        return f"{type(body).__name__}({fields})"
+    return repr(body)
+
+
+def anonymous_graph(factors: Iterable[FactorInstance], object_key: ObjectKey) -> nx.Graph:
+    """The semantic graph of a set of factors with object names left out of every label: a
+    variable vertex is labelled by its kind, space, dimension and bounds; a factor vertex by its
+    template, arity and `anonymous_text` body; edges by slots. Isomorphic anonymous graphs are
+    the same NLP up to renaming objects of equal geometry (used to lift conflicts,
+    `gnppdsl.conflicts.lifting`; the database keeps the named labels of `semantic_graph`)."""
+    g = nx.Graph()
+    for i, f in enumerate(factors):
+        fid = ("h", i)
+        key = (f.body, id(object_key))
+        text = _ANON.get(key)
+        if text is None:
+            text = hashlib.sha256(anonymous_text(f.body, object_key).encode()).hexdigest()[:20]
+            if len(_ANON) > 200_000:
+                _ANON.clear()
+            _ANON[key] = text
+        g.add_node(fid, label=f"h|{f.template}|{len(f.variables)}|{text}")
+        slots: dict[tuple, list[int]] = {}
+        for j, v in enumerate(f.variables):
+            vid = ("x", v.key, v.step)
+            if vid not in g:
+                g.add_node(vid, label=f"x|{v.kind}|{v.space}|{v.dim}|{v.waypoints}|{v.lower}|{v.upper}")
+            slots.setdefault(vid, []).append(j)
+        for x, js in slots.items():
+            g.add_edge(fid, x, slots=",".join(map(str, js)))
+    return g
+
+
+_ANON: dict[Any, str] = {}
+
+
 @dataclass
 class SemanticGraph:
     """A labelled bipartite graph plus the precomputed data that makes matching cheap."""

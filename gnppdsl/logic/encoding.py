@@ -187,6 +187,46 @@ def conflict_program(name: str, seq: Sequence[PartialState]) -> str:
     return f"#program {name}(t).\n:- {', '.join(body)}.\n"
 
 
+def lifted_conflict_program(name: str, seqs: Sequence[Sequence[PartialState]]) -> tuple[str, str]:
+    """One parameterised constraint for the instances of a lifted conflict (all of length L+1):
+    (facts, step program). The facts `NAME_k(V1,X1,...,Vm,Xm)` list the instances, one relation
+    per shape k (number of facts per partial state); the step program `#program NAME(t).` has one
+    constraint per shape that joins a listed instance with the states s_{t-L} .. s_t, with the
+    conditions of `conflict_program`. Ground the facts once and the step program for every t.
+
+    Why a table and not one program per instance: the conflict is one piece of knowledge (the
+    same infeasible NLP up to renaming symmetric objects, `gnppdsl.conflicts.lifting`); clingo
+    grounds the join per step exactly as it would the separate constraints, and the program
+    stays one rule per shape however many objects the conflict covers.
+    """
+    seqs = [tuple(s) for s in seqs]
+    if not seqs or any(len(s) != len(seqs[0]) for s in seqs):
+        raise ValueError("a lifted conflict needs instances of one length")
+    L = len(seqs[0]) - 1
+    if L < 0:
+        raise ValueError("a conflict needs at least one partial state")
+    shapes: dict[tuple[int, ...], list[tuple[PartialState, ...]]] = {}
+    for s in seqs:
+        shapes.setdefault(tuple(len(p.facts) for p in s), []).append(s)
+    facts, rules = [], []
+    for k, (shape, group) in enumerate(sorted(shapes.items())):
+        rel = f"{name}_{k}"
+        for s in group:
+            args = [str(a) for p in s for f in p.facts for a in f]
+            facts.append(f"{rel}({','.join(args)})." if args else f"{rel}.")
+        head, body, j = [], [], 0
+        for l, count in enumerate(shape):
+            off = L - l
+            tt = "t" if off == 0 else f"t-{off}"
+            for _ in range(count):
+                head += [f"V{j}", f"X{j}"]
+                body.append(f"holds(V{j},X{j},{tt})")
+                j += 1
+        atom = f"{rel}({','.join(head)})" if head else rel
+        rules.append(f":- {', '.join([atom] + body + ['not idle(t)', f't >= {L}'])}.")
+    return "\n".join(facts) + "\n", f"#program {name}(t).\n" + "\n".join(rules) + "\n"
+
+
 def _check_task(task: SASTask) -> None:
     """Reject tasks the encoding (and SAS+) cannot mean: wrong indices or derived defaults."""
     nvars = len(task.variables)

@@ -35,10 +35,10 @@ import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Iterable, Sequence
 
-from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.compile.sas import SASTask
 from gnppdsl.logic.fd_guidance import guide
+from gnppdsl.logic.learned import LearnedConstraints
 from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, Plan, PlannerStats, PlanResult, Status
 from gnppdsl.logic.reformulation import forbid_plan, forbid_sequences
 from gnppdsl.logic.validate import plan_cost, validate_plan
@@ -66,7 +66,7 @@ def downward_binary() -> Path | None:
     return path if path.is_file() else None
 
 
-class FastDownwardPlanner:
+class FastDownwardPlanner(LearnedConstraints):
     """The planner interface of `IncrementalPlanner` (shortest_plan, add_conflict, block_plan)
     on Fast Downward. Plans are found, not proven shortest; `next_plan` (plan enumeration in
     order of length, the One-way baseline) and `minimize_cost` are not offered: those need an
@@ -84,37 +84,19 @@ class FastDownwardPlanner:
         self.guided = guided               # conflicts as redundant preconditions (fd_guidance)
         self.binary = binary
         self.stats = PlannerStats()
-        self.conflicts: list[tuple[PartialState, ...]] = []
-        self.blocked: list[tuple[int, ...]] = []
-        self._conflict_set: set[tuple[PartialState, ...]] = set()
-        self._blocked_set: set[tuple[int, ...]] = set()
+        LearnedConstraints.__init__(self)
         self._compiled: SASTask = task     # the task with every conflict and blocked plan in it
         self.horizon = 0
         self.fd_cpu = 0.0                  # CPU seconds of the FD processes (children)
 
-    # ---- constraints -------------------------------------------------------------------
-    def add_conflict(self, seq: Sequence[PartialState]) -> bool:
-        """Forbid every plan whose states contain s_i ⊇ p_0, ..., s_{i+L} ⊇ p_L (any i)."""
-        seq = tuple(seq)
-        if seq in self._conflict_set:
-            return False
-        self._compiled = forbid_sequences(self._compiled, [seq])    # checks the facts
-        self.conflicts.append(seq)
-        self._conflict_set.add(seq)
-        return True
+    # ---- constraints (bookkeeping in LearnedConstraints) ---------------------------------
+    def _forbid_conflict(self, seqs) -> None:
+        """Appendix B per ground instance (a lifted conflict's instances each get their own
+        b_0 .. b_L: the SAS+ task has no parameters)."""
+        self._compiled = forbid_sequences(self._compiled, seqs)
 
-    def add_conflicts(self, seqs: Iterable[Sequence[PartialState]]) -> int:
-        return sum(self.add_conflict(s) for s in seqs)
-
-    def block_plan(self, plan: Plan | Sequence[int]) -> bool:
-        """Forbid exactly this operator sequence (`forbid_plan`); False if known."""
-        ops = tuple(getattr(plan, "operators", plan))
-        if ops in self._blocked_set:
-            return False
+    def _forbid_plan(self, ops: tuple[int, ...]) -> None:
         self._compiled = forbid_plan(self._compiled, ops)
-        self.blocked.append(ops)
-        self._blocked_set.add(ops)
-        return True
 
     # ---- solving -----------------------------------------------------------------------
     def shortest_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
@@ -134,11 +116,8 @@ class FastDownwardPlanner:
                               f"time limit of {time_limit:g} s reached in Fast Downward's search for "
                               f"task {self.task.name}")
         if status is Status.NO_PLAN:
-            extra = [f"{len(self.conflicts)} conflicts"] if self.conflicts else []
-            extra += [f"{len(self.blocked)} blocked plans"] if self.blocked else []
-            under = f" under {' and '.join(extra)}" if extra else ""
             return PlanResult(Status.NO_PLAN, None, H, elapsed,
-                              f"no plan up to horizon {H} for task {self.task.name}{under}")
+                              f"no plan up to horizon {H} for task {self.task.name}{self._under()}")
         plan = self._plan(ops)
         return PlanResult(Status.FOUND, plan, len(plan), elapsed, f"found a plan of length {len(plan)}")
 

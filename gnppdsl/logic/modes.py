@@ -67,6 +67,10 @@ class AutoPlanner:
         return self.sequential.conflicts
 
     @property
+    def learned(self) -> list[tuple[tuple[PartialState, ...], ...]]:
+        return self.sequential.learned
+
+    @property
     def blocked(self) -> list[tuple[int, ...]]:
         return self.sequential.blocked
 
@@ -80,9 +84,14 @@ class AutoPlanner:
         return "sequential" if self.fd is None else "fd"
 
     def add_conflict(self, seq: Sequence[PartialState]) -> bool:
-        new = self.sequential.add_conflict(seq)
+        return self.add_lifted([seq]) > 0
+
+    def add_lifted(self, seqs: Iterable[Sequence[PartialState]]) -> int:
+        """A lifted conflict (`LearnedConstraints.add_lifted`) to both planners."""
+        seqs = [tuple(s) for s in seqs]
+        new = self.sequential.add_lifted(seqs)
         if new and self.fd is not None:
-            self.fd.add_conflict(seq)
+            self.fd.add_lifted(seqs)
         return new
 
     def add_conflicts(self, seqs: Iterable[Sequence[PartialState]]) -> int:
@@ -138,8 +147,8 @@ class AutoPlanner:
 
     def _switch(self) -> None:
         fd = FastDownwardPlanner(self.task, max_horizon=self.max_horizon)
-        for seq in self.sequential.conflicts:
-            fd.add_conflict(seq)
+        for group in self.sequential.learned:
+            fd.add_lifted(group)
         for ops in self.sequential.blocked:
             fd.block_plan(ops)
         self.fd = fd

@@ -19,14 +19,15 @@ import enum
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Iterable, Sequence
+from typing import Sequence
 
 import clingo
 
-from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.compile.sas import SASTask
 from gnppdsl import interrupt
 from gnppdsl.errors import SolveFailure
-from gnppdsl.logic.encoding import conflict_program, encode_task
+from gnppdsl.logic.encoding import conflict_program, encode_task, lifted_conflict_program
+from gnppdsl.logic.learned import LearnedConstraints
 from gnppdsl.logic.validate import State, find_sequence, plan_cost
 
 DEFAULT_MAX_HORIZON = 64
@@ -95,7 +96,7 @@ class PlannerStats:
         return sum(1 for name, _ in self.grounded_parts if name == program)
 
 
-class IncrementalPlanner:
+class IncrementalPlanner(LearnedConstraints):
     """Shortest plans, plan enumeration and cheapest plans for one SAS+ task.
 
     Parameters: `max_horizon` bounds the search when a call does not give its own bound;
@@ -112,10 +113,7 @@ class IncrementalPlanner:
         self.max_horizon = max_horizon
         self._statistics = statistics
         self.stats = PlannerStats()
-        self.conflicts: list[tuple[PartialState, ...]] = []
-        self.blocked: list[tuple[int, ...]] = []
-        self._conflict_set: set[tuple[PartialState, ...]] = set()
-        self._blocked_set: set[tuple[int, ...]] = set()
+        LearnedConstraints.__init__(self)
         self._step_programs: list[str] = []   # grounded for every step t (conflicts)
         self._waiting_blocks: dict[int, list[tuple[tuple[int, ...], str]]] = {}
         self._cache: list[Plan] = []          # further plans of the last solve (next_plan)
@@ -154,53 +152,39 @@ class IncrementalPlanner:
                 self._add_block(ops, last, t)
         return True
 
-    def _add_step_program(self, name: str, text: str) -> None:
+    def _add_step_program(self, name: str, text: str, data: str = "") -> None:
         """Add `#program name(t)`, ground it for t = 0..horizon in one call, and for every
-        later step together with `step(t)`."""
+        later step together with `step(t)`; `data` (facts the program joins with) is grounded
+        once, in the same call."""
         self._ctl.add(name, ["t"], text)
+        parts = [(name, (t,)) for t in range(0, self._horizon + 1)]
+        if data:
+            self._ctl.add(f"{name}_data", [], data)
+            parts.insert(0, (f"{name}_data", ()))
         self._step_programs.append(name)
-        self._ground([(name, (t,)) for t in range(0, self._horizon + 1)])
+        self._ground(parts)
 
-    # ---- constraints -------------------------------------------------------------------
-    def add_conflict(self, seq: Sequence[PartialState]) -> bool:
-        """Forbid every plan whose states contain s_i ⊇ p_0, ..., s_{i+L} ⊇ p_L (any i).
+    # ---- constraints (bookkeeping in LearnedConstraints) ---------------------------------
+    def _forbid_conflict(self, seqs) -> None:
+        """One step program per learned conflict: `conflict_program` for a single sequence,
+        `lifted_conflict_program` (one constraint over a table of instances) for several."""
+        name = f"conflict_{sum(1 for n in self._step_programs if n.startswith('conflict_'))}"
+        if len(seqs) == 1:
+            self._add_step_program(name, conflict_program(name, seqs[0]))
+        else:
+            data, text = lifted_conflict_program(name, seqs)
+            self._add_step_program(name, text, data)
 
-        Returns False if the same conflict was added before (nothing to do).
-        """
-        seq = tuple(seq)
-        self._check_partial_states(seq)
-        if seq in self._conflict_set:
-            return False
-        name = f"conflict_{len(self.conflicts)}"
-        self._add_step_program(name, conflict_program(name, seq))
-        self.conflicts.append(seq)
-        self._conflict_set.add(seq)
-        return True
-
-    def add_conflicts(self, seqs: Iterable[Sequence[PartialState]]) -> int:
-        return sum(self.add_conflict(s) for s in seqs)
-
-    def block_plan(self, plan: Plan | Sequence[int]) -> bool:
-        """Forbid exactly this plan (its operator sequence at its length); False if known.
-
-        The nogoods are added through clingo's backend (no grounding): `occurs(a_1, 1), ...,
+    def _forbid_plan(self, ops: tuple[int, ...]) -> None:
+        """The nogoods are added through clingo's backend (no grounding): `occurs(a_1, 1), ...,
         occurs(a_n, n), query(n)` for the horizon n, and `..., idle(n + 1)` for longer
-        horizons with idle steps, the latter once step n + 1 exists.
-        """
-        ops = tuple(getattr(plan, "operators", plan))
-        if ops in self._blocked_set:
-            return False
-        if any(not 0 <= o < len(self.task.operators) for o in ops):
-            raise ValueError(f"plan refers to unknown operators: {ops}")
-        self.blocked.append(ops)
-        self._blocked_set.add(ops)
+        horizons with idle steps, the latter once step n + 1 exists."""
         n = len(ops)
         for t, last in ((n, "query"), (n + 1, "idle")):
             if t <= self._horizon:
                 self._add_block(ops, last, t)
             else:
                 self._waiting_blocks.setdefault(t, []).append((ops, last))
-        return True
 
     def _add_block(self, ops: tuple[int, ...], last: str, t: int) -> None:
         syms = [clingo.Function("occurs", [clingo.Number(o), clingo.Number(i)])
@@ -214,14 +198,6 @@ class IncrementalPlanner:
             lits.append(atom.literal)
         with self._ctl.backend() as backend:
             backend.add_rule([], lits)
-
-    def _check_partial_states(self, seq: Sequence[PartialState]) -> None:
-        if not seq:
-            raise ValueError("a conflict needs at least one partial state")
-        for p in seq:
-            for v, x in p.facts:
-                if not (0 <= v < len(self.task.variables) and 0 <= x < len(self.task.variables[v].values)):
-                    raise ValueError(f"fact ({v}, {x}) is not a fact of task {self.task.name}")
 
     # ---- solving -----------------------------------------------------------------------
     def _set_externals(self, query: int, cut: bool, idle: bool, minimize: bool) -> None:
@@ -398,13 +374,7 @@ class IncrementalPlanner:
 
     # ---- messages ----------------------------------------------------------------------
     def _no_plan_message(self, H: int) -> str:
-        extra = []
-        if self.conflicts:
-            extra.append(f"{len(self.conflicts)} conflicts")
-        if self.blocked:
-            extra.append(f"{len(self.blocked)} blocked plans")
-        under = f" under {' and '.join(extra)}" if extra else ""
-        return f"no plan up to horizon {H} for task {self.task.name}{under}"
+        return f"no plan up to horizon {H} for task {self.task.name}{self._under()}"
 
     def _timeout(self, h: int, start: float, limit: float | None) -> PlanResult:
         return PlanResult(Status.TIMEOUT, None, h, time.perf_counter() - start,

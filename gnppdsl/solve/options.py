@@ -75,6 +75,13 @@ class SolveOptions:
                                      # pairs it found near as factors and is solved again
                                      # (`gnppdsl.solve.coverage`); False: it ends the solve as
                                      # verification_failed (every solution is verified either way)
+    lift_conflicts: bool = True      # gnpp: each conflict is learned with every symmetric instance
+                                     # the factory confirms (same NLP up to renaming objects of
+                                     # equal geometry and scene data, `gnppdsl.conflicts.lifting`);
+                                     # False: the one instance found (before issue 19)
+    minimise_conflicts: bool = False  # gnpp: drop every fact of a conflict whose factors the
+                                     # infeasibility does not need (`gnppdsl.conflicts.minimise`,
+                                     # one NLP with restarts per fact)
     anytime: float = 0.0             # seconds after the first solution spent on cheaper logical
                                      # plans under a cost bound (`gnppdsl.solve.anytime`; 0: off),
                                      # within the time limit

@@ -48,6 +48,7 @@ class Conflict:
     plan_index: int = 0              # which candidate plan produced it (1-based)
     at_step: int = 0                 # absolute step of p_0 in that plan
     named: tuple = ()                # the partial states by name: ((("parent(b1)", "s1"), ...), ...)
+    instances: tuple = ()            # lifted: the further symmetric instances (DSL text each)
     # not serialised: the infeasible subgraph's factor instances (tests re-solve them)
     subgraph: tuple = field(default=(), repr=False, compare=False)
 
@@ -62,6 +63,7 @@ class Conflict:
             "relaxation": self.relaxation,
             "plan_index": self.plan_index,
             "at_step": self.at_step,
+            "instances": list(self.instances),
         }
 
 
@@ -102,7 +104,11 @@ class Stats:
     total_time: float = 0.0           # wall clock
     cpu_time: float = 0.0             # CPU seconds of this process and its C compiler runs (the paper's "time")
     plans: int = 0                    # candidate logic plans evaluated
-    conflicts: int = 0
+    conflicts: int = 0                # conflicts learned (a lifted conflict once)
+    conflict_instances: int = 0       # ground instances they forbid (>= conflicts)
+    lift_time: float = 0.0            # seconds finding symmetric instances (`conflicts.lifting`)
+    minimise_checks: int = 0          # NLPs of the fact minimisation (`conflicts.minimise`)
+    minimise_time: float = 0.0        # seconds in it
     db_feasible_hits: int = 0
     db_infeasible_hits: int = 0
     reused_solutions: int = 0         # subgraphs shown feasible by earlier solutions (no NLP)

@@ -11,6 +11,7 @@ import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
+from gnppdsl.conflicts.lifting import Lifter
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.compiled import Compiled
@@ -73,6 +74,9 @@ class Run(ReachabilityCosts):
         if "g" in options.switches:
             self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
                                        fingerprint=compiled.fingerprint, object_key=compiled.object_key)
+        self.lifter: Lifter | None = None
+        if options.lift_conflicts and compiled.object_key is not None:
+            self.lifter = Lifter(compiled.factory, self.task, compiled.problem.objects, compiled.object_key)
 
     def say(self, msg: str) -> None:
         if self.progress is not None:
@@ -138,8 +142,33 @@ class Run(ReachabilityCosts):
             raise TimeUp()                  # cut short: not a confirmation
         return not r.feasible
 
+    def minimised(self, sub_factors: Sequence[FactorInstance]) -> tuple[FactorInstance, ...]:
+        """The conflict's facts by the deletion filter (`conflicts.minimise`): each smaller
+        subgraph is solved as the conflict itself is confirmed (the solver's restarts), so a
+        dropped fact rests on the same infeasible verdict as the conflict."""
+        from gnppdsl.conflicts.minimise import minimise_facts
+        from gnppdsl.nlp.graph import GraphNLP
+
+        def is_infeasible(factors: tuple[FactorInstance, ...]) -> bool:
+            r = self.new_solver().solve(GraphNLP(list(factors)), seed=self.options.seed)
+            self.nlp_calls += 1
+            if not r.feasible and time.perf_counter() >= self.deadline:
+                raise TimeUp()               # cut short: not a verdict
+            return not r.feasible
+
+        t0 = time.perf_counter()
+        out, checks = minimise_facts(sub_factors, is_infeasible)
+        self.stats.minimise_time += time.perf_counter() - t0
+        self.stats.minimise_checks += checks
+        return out
+
     def add_conflict(self, plan: Plan, sub_factors: Sequence[FactorInstance], source: str,
                      relaxation: str) -> None:
+        """Map the infeasible subgraph to <p_0 ... p_L> (Sec. VII) and hand it to the planner,
+        with every symmetric instance the factory confirms (`Lifter`, option lift_conflicts)
+        as one lifted conflict."""
+        if self.options.minimise_conflicts and source == "nlp":
+            sub_factors = self.minimised(sub_factors)
         seq = to_partial_states(sub_factors)
         first = min(f.step for f in sub_factors)
         # the conflict must hold in the plan that produced it, else it would not exclude it
@@ -147,18 +176,26 @@ class Run(ReachabilityCosts):
         if not holds:
             raise AssertionError(f"conflict {seq} does not hold in the plan it came from at step {first}")
         t0, c0 = time.perf_counter(), _cpu()
-        new = self.planner.add_conflict(seq)
-        if not new:
+        instances = [seq]
+        if self.lifter is not None:
+            instances = self.lifter.instances(plan.states, sub_factors)
+            self.stats.lift_time += time.perf_counter() - t0
+        known = seq in set(self.planner.conflicts)
+        new = self.planner.add_lifted(instances)
+        if known or not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
         self.stats.logic_time += time.perf_counter() - t0
         self.stats.logic_cpu += _cpu() - c0
+        others = tuple(conflict_str(self.task, s) for s in instances[1:])
         c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
                      relaxation, self.stats.plans, first, named=names_of(self.task, seq),
-                     subgraph=tuple(sub_factors))
+                     instances=others, subgraph=tuple(sub_factors))
         self.conflicts.append(c)
         self.stats.conflicts += 1
-        self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}")
+        self.stats.conflict_instances += new
+        lifted = f" (+{len(others)} symmetric instances)" if others else ""
+        self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.finish_stats()

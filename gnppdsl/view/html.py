@@ -9,7 +9,11 @@ and `viewer.handle_command` runs them on load, so the page needs no network, no 
 other file (viser 1.1 needs its client built from source or served by its Python process;
 meshcat's own `static_html` needs a running zmq server). What meshcat has no widget for is
 added here in plain DOM: the timeline of the plan's actions, step to previous / next keyframe,
-the conflicts learned and a legend.
+the conflicts learned and a legend. A conflict clicked in the list (or `#conflict=K` in the
+page's address) is shown in 3-D: the bodies it names (`conflict_names`: its partial states'
+variables and values, its factors' arguments) tinted orange, the other objects faded, and the
+final plan's actions on those bodies orange on the timeline; clicking it again restores the
+colours (each material cloned once and its colour kept, so the restore is exact).
 
 Size: meshes are inlined once per file (two Pandas share them), gzip-compressed and base64
 encoded, and inflated in the browser with `DecompressionStream` (11 MB of Panda Collada files
@@ -21,6 +25,7 @@ import base64
 import gzip
 import html
 import json
+import re
 import uuid
 from pathlib import Path
 from typing import Any
@@ -165,13 +170,38 @@ class _Vis:
         self.path = path
 
 
+_NAME = re.compile(r"[A-Za-z_]\w*")
+
+
+def conflict_names(conflict: dict[str, Any]) -> set[str]:
+    """Every name a learned conflict mentions: the variables and values of its partial states
+    (`parent(b1) = target`) and the arguments of its factors (`apart(a=b1, b=b2) -> ...`); the
+    viewer keeps those that are bodies of the scene (objects, robots)."""
+    names: set[str] = set()
+    for state in conflict.get("named", []):
+        for var, value in state:
+            names.update(_NAME.findall(f"{var} {value}"))
+    for f in conflict.get("factors", []):
+        names.update(re.findall(r"=\s*([A-Za-z_]\w*)", f.partition("->")[0]))
+    return names
+
+
 def page_data(result: dict[str, Any], samples: Samples) -> dict[str, Any]:
     """What the page's own widgets show: actions on the time axis, keyframes, conflicts."""
     steps = result["steps"]
     actions = [{"name": st["action"], "start": steps[i - 1]["time"], "end": st["time"]}
                for i, st in enumerate(steps) if i > 0]
-    conflicts = [{"text": c["text"], "source": c["source"], "relaxation": c.get("relaxation", ""),
-                  "plan": c.get("plan_index", 0), "at": c.get("at_step", 0)} for c in result.get("conflicts", [])]
+    owners: dict[str, list[str]] = {}
+    for b in samples.bodies:
+        owners.setdefault(b.owner, []).append(f"{ROOT}/{b.path}")
+    plan_args = [set(_NAME.findall(a.partition("(")[2])) for a in result["plan"]]
+    conflicts = []
+    for c in result.get("conflicts", []):
+        names = sorted(conflict_names(c) & set(owners))
+        conflicts.append({"text": c["text"], "source": c["source"], "relaxation": c.get("relaxation", ""),
+                          "plan": c.get("plan_index", 0), "at": c.get("at_step", 0), "objects": names,
+                          "paths": [p for n in names for p in owners[n]],
+                          "actions": [i for i, args in enumerate(plan_args) if args & set(names)]})
     extent = np.array([b[:3, 3] for ps in samples.placements.values() for b in ps]) if samples.placements \
         else np.zeros((1, 3))
     lo, hi = extent.min(axis=0), extent.max(axis=0)
@@ -183,7 +213,8 @@ def page_data(result: dict[str, Any], samples: Samples) -> dict[str, Any]:
     for b in samples.bodies:
         if b.path.startswith("objects/") and not b.static:
             legend.append({"name": b.owner, "color": "#%06x" % _hex(b.color or (0.7, 0.7, 0.7))})
-    return {"title": title, "actions": actions, "keyframes": samples.keyframe_times,
+    scene_objects = [p for b in samples.bodies if b.path.startswith("objects/") for p in [f"{ROOT}/{b.path}"]]
+    return {"title": title, "actions": actions, "keyframes": samples.keyframe_times, "objects": scene_objects,
             "duration": samples.times[-1] if samples.times else 0.0, "conflicts": conflicts,
             "lo": lo.tolist(), "hi": hi.tolist(), "planar": samples.planar, "legend": legend}
 
@@ -205,14 +236,13 @@ def render_page(result: dict[str, Any], compiled: Any) -> str:
 
 
 def write_html(result: dict[str, Any], compiled: Any, path: str | Path) -> Path:
-    """Write the page (atomically; its directory created) and return its path."""
+    """Write the page (`gnppdsl.outputs.write_atomic`: never through a symbolic link, never half
+    written; its directory created) and return its path."""
+    from gnppdsl.outputs import write_atomic
+
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    text = render_page(result, compiled)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(p)
-    return p
+    return write_atomic(p, render_page(result, compiled), "--html")
 
 
 _TEMPLATE = """<!DOCTYPE html>
@@ -235,6 +265,10 @@ _TEMPLATE = """<!DOCTYPE html>
   .gnpp-act {{ position: absolute; top: 0; bottom: 0; border-right: 1px solid #fff; overflow: hidden;
               white-space: nowrap; font-size: 11px; padding: 2px 3px; box-sizing: border-box; background: #c9d7f0; }}
   .gnpp-act.now {{ background: #7fa3e0; color: #fff; }}
+  .gnpp-act.conflict {{ background: #f0a040; }}
+  .gnpp-act.conflict.now {{ background: #d06a00; }}
+  #gnpp-side li.gnpp-conflict {{ cursor: pointer; }}
+  #gnpp-side li.gnpp-conflict.sel {{ background: #f0a040; }}
   #gnpp-cursor {{ position: absolute; top: -3px; bottom: -3px; width: 2px; background: #d22; }}
 </style>
 </head>
@@ -315,17 +349,53 @@ function gnppShow() {{
   document.getElementById("gnpp-play").innerHTML = viewer.animator.playing ? "||" : "&#x25B6;";
 }}
 
+// a learned conflict selected: its bodies tinted orange in the scene, the other objects faded,
+// the plan's actions on those bodies orange on the timeline; -1 restores the scene's colours
+GNPP.selected = -1;
+function gnppTint(path, mode) {{
+  const node = viewer.scene_tree.find(path.split("/").filter(p => p.length > 0));
+  node.object.traverse(o => {{
+    if (!o.material || Array.isArray(o.material)) {{ return; }}
+    if (!o.userData.gnppOrig) {{
+      o.material = o.material.clone();        // meshes may share a material with another body
+      o.userData.gnppOrig = {{color: o.material.color ? o.material.color.clone() : null,
+                              opacity: o.material.opacity, transparent: o.material.transparent}};
+    }}
+    const g = o.userData.gnppOrig, m = o.material;
+    if (g.color) {{ m.color.copy(g.color); }}
+    m.opacity = g.opacity; m.transparent = g.transparent;
+    if (mode === "hot" && m.color) {{ m.color.setRGB(1.0, 0.55, 0.0); }}
+    else if (mode === "faded") {{ m.opacity = 0.2; m.transparent = true; }}
+    m.needsUpdate = true;
+  }});
+}}
+function gnppSelect(k) {{
+  GNPP.selected = k;
+  const c = k >= 0 ? GNPP.conflicts[k] : null;
+  const hot = new Set(c ? c.paths : []);
+  for (const p of GNPP.objects) {{ gnppTint(p, hot.has(p) ? "hot" : (c ? "faded" : "normal")); }}
+  for (const p of hot) {{ if (!GNPP.objects.includes(p)) {{ gnppTint(p, "hot"); }} }}
+  if (!c) {{ for (const x of GNPP.conflicts) {{ for (const p of x.paths) {{ gnppTint(p, "normal"); }} }} }}
+  document.querySelectorAll(".gnpp-act").forEach((el, i) => el.classList.toggle("conflict", !!c && c.actions.includes(i)));
+  document.querySelectorAll("li.gnpp-conflict").forEach(li => li.classList.toggle("sel", +li.dataset.k === k));
+  viewer.set_dirty();
+}}
+
 function gnppWidgets() {{
   document.getElementById("gnpp-title").innerHTML = GNPP.title;
   const side = document.getElementById("gnpp-side");
   let h = "<h3>objects</h3>" + GNPP.legend.map(o =>
     `<span class="gnpp-swatch" style="background:${{o.color}}"></span>${{o.name}}`).join(" &nbsp; ");
   h += `<h3>conflicts learned (${{GNPP.conflicts.length}})</h3><ol>`;
-  for (const c of GNPP.conflicts) {{
+  GNPP.conflicts.forEach((c, k) => {{
     const where = c.relaxation ? " [" + c.relaxation + "]" : "";
-    h += `<li title="plan ${{c.plan}}, step ${{c.at}}">#${{c.plan}} ${{c.source}}${{where}}: ${{c.text.replace(/</g, "&lt;")}}</li>`;
-  }}
+    h += `<li class="gnpp-conflict" data-k="${{k}}" title="plan ${{c.plan}}, step ${{c.at}}; click: show ${{c.objects.join(", ")}}">` +
+         `#${{c.plan}} ${{c.source}}${{where}}: ${{c.text.replace(/</g, "&lt;")}}</li>`;
+  }});
   side.innerHTML = h + "</ol>";
+  side.querySelectorAll("li.gnpp-conflict").forEach(li => {{
+    li.onclick = () => gnppSelect(+li.dataset.k === GNPP.selected ? -1 : +li.dataset.k);
+  }});
   const track = document.getElementById("gnpp-track");
   const d = Math.max(GNPP.duration, 1e-9);
   GNPP.actions.forEach((a, i) => {{
@@ -379,6 +449,8 @@ function gnppCamera() {{
   gnppWidgets();
   const m = /t=([0-9.]+)/.exec(location.hash);
   gnppSeek(m ? parseFloat(m[1]) : 0);
+  const sel = /conflict=([0-9]+)/.exec(location.hash);      // #t=2&conflict=0: a conflict shown
+  if (sel && +sel[1] < GNPP.conflicts.length) {{ gnppSelect(+sel[1]); }}
   document.title = document.title + " (ready)";
 }})();
 </script>

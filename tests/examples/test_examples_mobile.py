@@ -5,6 +5,7 @@ seconds of CPU): run with GNPP_SLOW=1, as `.ci/run` does. The algorithms are tho
 examples/README.md documents for each problem: sort2 by GNPP_trn, pick_place and sort4 by R-LGP."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ from gnppdsl import load_and_compile
 from gnppdsl.solve.loop import solve_compiled
 from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.verify_solution import verify_solution
+from rebuilt_check import check as rebuilt_check     # tests/rebuilt_check.py: no gnppdsl import
 
 MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 EXPECTED = yaml.safe_load((MOBILE / "expected.yaml").read_text())["problems"]
@@ -38,6 +40,8 @@ def test_mobile_problem_solved_and_verified(name):
     rep = verify_solution(c.geometry, r)
     assert rep.ok, str(rep)
     assert rep.keyframes == len(r.plan) + 1 and rep.waypoints > 0
+    rebuilt = rebuilt_check(json.loads(json.dumps(r.to_json())), MOBILE / EXPECTED[name]["file"])
+    assert rebuilt.ok and rebuilt.keyframes == rep.keyframes, str(rebuilt)
 
 
 @pytest.mark.slow

@@ -4,6 +4,7 @@ itself rejects corrupted solutions (so a pass means something)."""
 from __future__ import annotations
 
 import copy
+import json
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ from gnppdsl.solve.compiled import load_and_compile
 from gnppdsl.solve.loop import solve_compiled
 from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.verify_solution import verify_solution
+from rebuilt_check import check as rebuilt_check     # tests/rebuilt_check.py: no gnppdsl import
 
 LAB = Path(__file__).resolve().parents[2] / "examples" / "lab"
 
@@ -36,6 +38,59 @@ def test_lab1_solved_and_verified(lab1):
     assert rep.ok, str(rep)
     assert rep.keyframes == len(r.plan) + 1
     assert rep.waypoints == 18 * len(r.plan)          # interior waypoints of every motion
+
+
+def _as_json(r) -> dict:
+    return json.loads(json.dumps(r.to_json()))
+
+
+def test_lab1_passes_the_rebuilt_constraint_check(lab1):
+    """The second verifier (constraints rebuilt from the JSON, the scene YAML and the URDF,
+    nothing from gnppdsl) agrees: every keyframe and the same waypoints as verify_solution."""
+    c, r = lab1
+    rep = rebuilt_check(_as_json(r), LAB / "lab1.pntc")
+    assert rep.ok, str(rep)
+    assert rep.keyframes == len(r.plan) + 1
+    assert rep.waypoints == verify_solution(c.geometry, r).waypoints
+
+
+def test_rebuilt_check_rejects_corrupted_solutions(lab1):
+    """Each kind of failure the rebuilt check knows, triggered by one edit of the JSON."""
+    _, r = lab1
+    good = _as_json(r)
+    last, held_at = len(good["steps"]) - 1, 1            # b2 held by left_arm at s1
+
+    def failures(edit) -> list[str]:
+        data = copy.deepcopy(good)
+        edit(data)
+        return rebuilt_check(data, LAB / "lab1.pntc").failures
+
+    def sink(d):                                           # b2 3 cm into b1 at the end
+        d["steps"][last]["values"]["pose(b2)"][2] -= 0.03
+        d["steps"][last].pop("world", None)
+    f = failures(sink)
+    assert any("b1 and b2 overlap" in x or "b2 and b1 overlap" in x for x in f), f
+    assert any("b2 does not rest on b1" in x for x in f), f
+
+    def beyond(d):                                         # a waypoint past joint 4's upper limit
+        d["steps"][0]["trajectories"]["path(left_arm)"][7][3] = 0.5
+    assert any("waypoint 7" in x and "left_arm.panda_joint4" in x for x in failures(beyond))
+
+    def slip(d):                                           # the held b2 20 cm off the fingers
+        d["steps"][held_at]["values"]["pose(b2)"][0] += 0.2
+    f = failures(slip)
+    assert any(x.startswith(f"s{held_at}: left_arm's end effector is not inside b2") for x in f), f
+    assert any(f"s{held_at}: the result's world pose of b2" in x for x in f), f
+
+    def no_goal(d):
+        d["steps"][last]["state"] = d["steps"][last]["state"].replace("parent(b2) = b1", "parent(b2) = table")
+    assert any(x.startswith("goal parent(b2) = b1") for x in failures(no_goal))
+
+    def dive(d):                                           # the hand through the table
+        q = list(d["steps"][0]["values"]["q(left_arm)"])
+        q[1], q[3] = 1.7, -0.2
+        d["steps"][0]["trajectories"]["path(left_arm)"][10] = q
+    assert any("waypoint 10: left_arm/" in x and "collides with table" in x for x in failures(dive))
 
 
 def _corrupt(r, fn):
@@ -145,3 +200,5 @@ def test_lab_problem_solved_and_verified(name):
     assert r.status == "solved", r.message
     rep = verify_solution(c.geometry, r)
     assert rep.ok, str(rep)
+    rebuilt = rebuilt_check(_as_json(r), LAB / f"{name}.pntc")
+    assert rebuilt.ok, str(rebuilt)

@@ -84,6 +84,32 @@ def test_size_limit(tmp_path, monkeypatch):
     assert "larger than the limit" in errs[0].message
 
 
+def test_source_size_limit(tmp_path, monkeypatch):
+    """A .pntc over `MAX_SOURCE_BYTES` is refused unread, at its 1:1 (named on the command line
+    or `use`d), its text never echoed; the bundled sources are all under the limit."""
+    import gnppdsl.inputs as inputs
+
+    d, p = _problem_with_scene(tmp_path, "p1_one_block.yaml")
+    biggest = max(f.stat().st_size for f in [*(ROOT / "examples").rglob("*.pntc"),
+                                             *(ROOT / "stdlib").glob("*.pntc")])
+    assert biggest < inputs.MAX_SOURCE_BYTES
+    monkeypatch.setattr(inputs, "MAX_SOURCE_BYTES", (d / "domain.pntc").stat().st_size + 1)
+    with open(p, "a") as fh:
+        fh.write("# " + "SECRET-MARKER " * 400 + "\n")
+    report = check_files([str(d / "domain.pntc"), str(p)])
+    errs = report.reporter.errors
+    assert [(e.span.file, e.span.line, e.span.column) for e in errs] == [(str(p), 1, 1)]
+    assert "larger than the limit" in errs[0].message
+    assert "SECRET-MARKER" not in report.render()
+    (d / "big.pntc").write_text("module big\n# " + "x" * (d / "domain.pntc").stat().st_size + "\n")
+    shutil.copy(PLANAR / "p1_one_block.pntc", p)
+    dom = d / "domain.pntc"
+    dom.write_text(dom.read_text().replace("use planar\n", "use planar, big\n"))
+    monkeypatch.setattr(inputs, "MAX_SOURCE_BYTES", dom.stat().st_size + 1)
+    errs = check_files([str(dom), str(p)]).reporter.errors
+    assert [(e.span.file, e.span.line) for e in errs] == [(str(d / "big.pntc"), 1)], errs
+
+
 def test_scene_and_urdf_paths_are_relative_to_the_naming_file(tmp_path, monkeypatch):
     d, p = _problem_with_scene(tmp_path, "scenes/s.yaml")
     (d / "scenes").mkdir()

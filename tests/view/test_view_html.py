@@ -24,14 +24,15 @@ def _chromium() -> str:
     return exe
 
 
-def _screenshot(page, png, t: float) -> np.ndarray:
+def _screenshot(page, png, t: float, extra: str = "", bar: bool = False) -> np.ndarray:
     from PIL import Image
 
     cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
            "--disable-background-networking", "--proxy-server=127.0.0.1:9", "--window-size=1000,700",
-           "--virtual-time-budget=8000", f"--screenshot={png}", f"{page.resolve().as_uri()}#t={t}"]
+           "--virtual-time-budget=8000", f"--screenshot={png}", f"{page.resolve().as_uri()}#t={t}{extra}"]
     subprocess.run(cmd, capture_output=True, timeout=180, check=True)
-    return np.asarray(Image.open(png).convert("RGB")).astype(int)[:600]   # above the timeline bar
+    img = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    return img if bar else img[:600]                                      # above the timeline bar
 
 
 def _mask(img: np.ndarray, rgb) -> np.ndarray:
@@ -99,3 +100,27 @@ def test_held_block_follows_the_waypoints(solved_json):
         checked += 1
     assert checked >= 10
     assert s.times == sorted(s.times) and len(s.times) == len(set(s.times))
+
+
+def test_selected_conflict_is_highlighted_in_3d_and_on_the_timeline(solved_json, tmp_path):
+    """p3's one conflict, {parent(b1) = target, parent(b2) = s2}: with it selected
+    (`#conflict=0`) the blocks it names turn orange in the rendered scene (red b1 and blue b2
+    gone), and the timeline's actions on them are orange; without it, no orange anywhere."""
+    from gnppdsl.view.html import conflict_names
+
+    data = solved_json("planar/p3_occupied.pntc")
+    (conflict,) = data["conflicts"]
+    assert {"b1", "b2", "target", "s2"} <= conflict_names(conflict)        # the text names them
+    assert all(n in conflict["text"] for n in ("b1", "b2", "target", "s2"))
+    page = tmp_path / "p3c.html"
+    assert main(["view", data["_path"], "--html", str(page)]) == 0
+    plain = _screenshot(page, tmp_path / "plain.png", 0.0, bar=True)
+    shown = _screenshot(page, tmp_path / "conflict.png", 0.0, "&conflict=0", bar=True)
+    orange = (255, 140, 0)
+    scene, bar = shown[:600], shown[640:]
+    assert _mask(scene, orange).sum() > 400 + _mask(plain[:600], orange).sum()   # b1, b2, target
+    assert _mask(plain[640:], (240, 160, 64)).sum() < 300          # (the red cursor is near)
+    for rgb in ((217, 38, 38), (51, 89, 217)):                              # b1 red, b2 blue no more
+        before, after = _mask(plain[100:600], rgb).sum(), _mask(scene[100:], rgb).sum()
+        assert after < before - 150, (rgb, before, after)
+    assert _mask(bar, (240, 160, 64)).sum() + _mask(bar, (208, 106, 0)).sum() > 2000  # all 4 actions

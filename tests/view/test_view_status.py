@@ -66,3 +66,28 @@ def test_bench_status():
         status.print_row("p1  gnpp: solved")
         assert "bench: 1 of 2 runs · last p1  gnpp" in status.text() and "left" in status.text()
     assert "p1  gnpp: solved\n" in stream.getvalue()
+
+
+def test_bench_status_live_run_and_per_run_figures():
+    """The bench line shows the running solve's plans and NLPs (its live `Stats`) and, once
+    rows come in, plans and NLPs per run; both checked against the solve's own `Result`."""
+    from gnppdsl.cli.sweep import Cell, result_row
+    from gnppdsl.solve import load_and_compile, solve_compiled
+
+    compiled = load_and_compile(str(P3))
+    stream = _Tty()
+    with BenchStatus(2, stream=stream, interval=10) as status:
+        progress = status.run_progress("p3 gnpp seed 0")
+        result = solve_compiled(compiled, progress=progress)
+        live = status.text()
+        s = result.stats
+        assert f"now p3 gnpp seed 0: plans {s.plans}, NLPs {s.nlp_solves}" in live, live
+        row = result_row(Cell(str(P3), "gnpp", 0), result)
+        status.print_row("p3 gnpp seed 0: solved", row)
+        status.print_row("p3 gnpp seed 1: error", {"plans": None, "nlp_solves": None})
+        after = status.text()
+    assert "now " not in after and "last p3 gnpp seed 1" in after
+    assert f"per run {s.plans / 2:.1f} plans, {s.nlp_solves / 2:.1f} NLPs" in after, after
+    assert s.plans == 2 and s.nlp_solves > 0          # p3 needs the second plan
+    drawn = stream.getvalue()                         # redrawn live at the solver's messages
+    assert "now p3 gnpp seed 0: plans 1," in drawn and "now p3 gnpp seed 0: plans 2," in drawn

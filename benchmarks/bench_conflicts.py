@@ -1,0 +1,94 @@
+"""Conflicts per problem before and after issue 19's generalisation (a benchmark, not a test: it
+prints, it asserts nothing).
+
+Variants, run side by side per problem and seed, alternating (one process, CPU time):
+- `plain`: the conflict Alg. 1 found, one instance (before issue 19: `lift_conflicts=False`);
+- `lifted`: every symmetric instance the factory confirms, learned as one conflict
+  (`gnppdsl.conflicts.lifting`, the default);
+- `minimal`: lifted, and each conflict's facts minimised by the deletion filter first
+  (`gnppdsl.conflicts.minimise`, `minimise_conflicts=True`).
+Per run: status, N, plans, conflicts learned, ground instances they forbid, NLPs, CPU seconds
+(this process + children: Fast Downward), and the independent verification of the solution
+(pinocchio + coal over the domain's `avoid` pairs, `gnppdsl.solve.active_set.verify`; a failed check is a failure).
+
+    python benchmarks/bench_conflicts.py [--problems planar/p6_clutter scalability/clutter_3 ...]
+        [--variants plain lifted minimal] [--seeds 1] [--time-limit 300] [--planner auto]
+"""
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+from dataclasses import replace
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT = ["planar/p3_occupied", "planar/p6_clutter", "planar/p7_relay", "scalability/clutter_3",
+           "scalability/clutter_4", "scalability/clutter_5", "scalability/clutter_6", "scalability/stack_8",
+           "scalability/stack_16", "scalability/lab4_paper", "scalability/lab5_paper"]
+VARIANTS = {"plain": dict(lift_conflicts=False), "lifted": dict(lift_conflicts=True),
+            "minimal": dict(lift_conflicts=True, minimise_conflicts=True)}
+
+
+def cpu_now() -> float:
+    ch = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + ch.ru_utime + ch.ru_stime
+
+
+def run(compiled, variant: str, seed: int, time_limit: float, planner: str | None) -> dict:
+    from gnppdsl.solve.loop import solve_compiled
+    from gnppdsl.solve.options import SolveOptions
+    from gnppdsl.solve.active_set import verify
+
+    opts = SolveOptions.from_settings(compiled.problem.settings, seed=seed, time_limit=time_limit, jit=False)
+    opts = replace(opts, **VARIANTS[variant], **({"planner": planner} if planner else {}))
+    c0 = cpu_now()
+    r = solve_compiled(compiled, opts)
+    cpu = cpu_now() - c0
+    ok = r.status == "solved"
+    if ok:
+        ok = verify(compiled, r).ok
+    s = r.stats
+    return dict(status=r.status if ok or r.status != "solved" else "verification_failed", N=s.N if ok else None,
+                plans=s.plans, conflicts=s.conflicts, instances=s.conflict_instances, nlps=s.nlp_solves,
+                min_nlps=s.minimise_checks, cpu=cpu, lift=s.lift_time)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--problems", nargs="*", default=DEFAULT, help="examples/<dir>/<name> without .pntc")
+    ap.add_argument("--variants", nargs="*", default=["plain", "lifted"], choices=list(VARIANTS))
+    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--time-limit", type=float, default=300.0)
+    ap.add_argument("--planner", default=None, help="logic mode (default: the problem's setting)")
+    args = ap.parse_args(argv)
+
+    from gnppdsl.solve.compiled import load_and_compile
+
+    print("| problem | variant | seed | status | N | plans | conflicts | instances | NLPs (minimise) | CPU s | lift s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    totals: dict[tuple[str, str], list[dict]] = {}
+    for name in args.problems:
+        compiled = load_and_compile(str(ROOT / "examples" / f"{name}.pntc"))
+        for seed in range(args.seeds):
+            order = args.variants if seed % 2 == 0 else args.variants[::-1]    # alternate
+            for variant in order:
+                row = run(compiled, variant, seed, args.time_limit, args.planner)
+                totals.setdefault((name, variant), []).append(row)
+                print(f"| {name} | {variant} | {seed} | {row['status']} | {row['N']} | {row['plans']} | "
+                      f"{row['conflicts']} | {row['instances']} | {row['nlps']} ({row['min_nlps']}) | "
+                      f"{row['cpu']:.1f} | {row['lift']:.2f} |", flush=True)
+    base = args.variants[0]
+    print(f"\nCPU ratio against {base} (mean over seeds):")
+    for name in args.problems:
+        ref = totals[(name, base)]
+        for variant in args.variants[1:]:
+            rows = totals[(name, variant)]
+            ratio = sum(r["cpu"] for r in rows) / max(1e-9, sum(r["cpu"] for r in ref))
+            print(f"  {name}: {variant} {ratio:.2f}x CPU, conflicts "
+                  f"{sum(r['conflicts'] for r in ref) / len(ref):.1f} -> {sum(r['conflicts'] for r in rows) / len(rows):.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

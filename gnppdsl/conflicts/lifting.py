@@ -1,0 +1,207 @@
+"""Lifted conflicts: one infeasible subgraph, every symmetric instance of it (issue 19).
+
+Why: a conflict <p_0 .. p_L> names objects (`parent(b1) = pad1`), so the planner learns "b1
+does not fit on pad1 while o1 was never moved" and proposes b2 on pad1 next, which fails for
+the same geometric reason. When the objects are interchangeable for the infeasible subgraph M
+-- equal geometry, and the scene data folded into M's factors (poses, sizes) equal too -- the
+renamed conflict is just as sound, and learning all instances at once makes the number of
+conflicts grow with the kinds of geometric failure rather than with the objects.
+
+Soundness (paper 000, Prop. 7.1 and Theorem 7.1): an instance may only forbid plans whose
+graph-NLP contains an NLP isomorphic to M. Nothing here assumes a symmetry; each candidate
+renaming π of the conflict's objects is checked by the factory itself:
+1. the plan's states around the conflict are renamed by π (a bijection between objects of one
+   type with equal `object_key`) and the factory (the map Π) builds their factors;
+2. the factors that are π's images of M's (same rule, template, renamed bindings, same
+   relative step) are matched to M by a label-preserving isomorphism (networkx VF2) of the
+   anonymous semantic graphs (`semantic.anonymous_graph`: template, arity, body text with
+   objects replaced by their geometry and every folded number exact; variable kind, space,
+   dimension, bounds; slots on the edges). Isomorphic: the image M' is the same NLP as M up to
+   renaming variables, hence infeasible (the same verdict the original conflict rests on);
+3. the instance is `to_partial_states(M')`, the union of the generators of M''s own factors,
+   so by factor time-invariance (Property 4.2) every plan containing it contains M'. The
+   renamed states only serve to let the factory produce M'; they need not be reachable.
+A renaming whose image differs in any number (another initial pose, another pad position,
+another arm base) fails step 2 and yields nothing: lifting is conservative by construction.
+
+Cost: one factory call (`rule_factors`: the renamed rules only) on a window of L + 3 states per candidate renaming (single swaps of
+one conflict object with each object of its type and geometry, then their combinations, at
+most `limit`), no NLP.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence
+
+from networkx.algorithms import isomorphism
+
+from gnppdsl.compile.factors import FactorInstance
+from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.conflicts.mapping import to_partial_states
+from gnppdsl.conflicts.semantic import anonymous_graph, body_objects
+
+Conflict = tuple[PartialState, ...]
+State = Sequence[int]
+
+
+def parse_name(name: str) -> tuple[str, tuple[str, ...]]:
+    """`parent(b1)` -> ("parent", ("b1",)); `frozen` -> ("frozen", ()) (see `ground.var_name`)."""
+    if not name.endswith(")") or "(" not in name:
+        return name, ()
+    head, args = name[:-1].split("(", 1)
+    return head, tuple(a.strip() for a in args.split(",")) if args.strip() else ()
+
+
+@dataclass
+class LiftStats:
+    candidates: int = 0          # renamings checked with the factory
+    instances: int = 0           # instances found beyond the original conflicts
+
+
+@dataclass
+class Lifter:
+    """Symmetric instances of conflicts in one compiled problem (factory = the map Π)."""
+
+    factory: object                          # GraphNLPFactory: `factors(states)`
+    task: SASTask
+    object_types: Mapping[str, str]          # problem object -> its declared type
+    object_key: Callable[[str], str]         # geometry identity (`solve.compiled.object_keys`)
+    limit: int = 64                          # renamings checked per conflict
+    stats: LiftStats = field(default_factory=LiftStats)
+
+    def __post_init__(self) -> None:
+        self._index = {v.name: i for i, v in enumerate(self.task.variables)}
+        self._parsed = [parse_name(v.name) for v in self.task.variables]
+
+    # ---- public ------------------------------------------------------------------------
+    def instances(self, states: Sequence[State], factors: Sequence[FactorInstance]) -> list[Conflict]:
+        """The conflict of `factors` (an infeasible subgraph of the plan with full states
+        `states`) followed by every further instance found (each checked as the module says)."""
+        factors = tuple(factors)
+        original = to_partial_states(factors)
+        out = [original]
+        first = min(f.step for f in factors)
+        last = first + len(original) - 1
+        window = [tuple(s) for s in states[first:min(last + 3, len(states))]]
+        shifted = [_shift(f, -first) for f in factors]
+        pattern = anonymous_graph(shifted, self.object_key)
+        objs = self._conflict_objects(factors, original)
+        choices = {o: [c for c in self.object_types if c != o and self.object_types[c] == self.object_types[o]
+                       and self.object_key(c) == self.object_key(o) != "-"] for o in objs}
+        valid: dict[str, list[str]] = {o: [] for o in objs}
+        checked = 0
+        for o in objs:                                   # single swaps first
+            for c in choices[o]:
+                if checked >= self.limit:
+                    break
+                checked += 1
+                inst = self._check({o: c}, window, shifted, pattern)
+                if inst is not None:
+                    valid[o].append(c)
+                    if inst not in out:
+                        out.append(inst)
+        movable = [o for o in objs if valid[o]]
+        if len(movable) >= 2:                            # then their combinations
+            for combo in itertools.product(*[[o] + valid[o] for o in movable]):
+                if checked >= self.limit:
+                    break
+                mapping = {o: c for o, c in zip(movable, combo) if o != c}
+                if len(mapping) < 2 or len(set(combo)) != len(combo):
+                    continue
+                checked += 1
+                inst = self._check(mapping, window, shifted, pattern)
+                if inst is not None and inst not in out:
+                    out.append(inst)
+        self.stats.candidates += checked
+        self.stats.instances += len(out) - 1
+        return out
+
+    # ---- internals ---------------------------------------------------------------------
+    def _conflict_objects(self, factors: Sequence[FactorInstance], seq: Conflict) -> list[str]:
+        names: set[str] = set()
+        for f in factors:
+            names.update(o for _, o in f.bindings)
+            names.update(body_objects(f.body))
+            for v in f.variables:
+                names.update(v.args)
+        for p in seq:
+            for v, x in p.facts:
+                names.update(self._parsed[v][1])
+                names.add(self.task.variables[v].values[x])
+        return sorted(n for n in names if n in self.object_types)
+
+    def _check(self, mapping: dict[str, str], window: list[tuple[int, ...]],
+               shifted: list[FactorInstance], pattern) -> Conflict | None:
+        perm = _complete(mapping)
+        renamed = [self._rename_state(s, perm) for s in window]
+        wanted = {(f.rule, tuple((k, perm.get(o, o)) for k, o in f.bindings), f.step) for f in shifted}
+        templates = {f.template for f in shifted}
+        candidates = [f for f in self.factory.rule_factors(renamed, sorted(wanted)) if f.template in templates]
+        if len(candidates) < len(shifted):
+            return None
+        target = anonymous_graph(candidates, self.object_key)
+        gm = isomorphism.GraphMatcher(target, pattern, node_match=_same_label, edge_match=_same_slots)
+        for match in gm.subgraph_monomorphisms_iter():
+            image = [candidates[n[1]] for n in match if n[0] == "h"]
+            # the image alone must be the same NLP as M (no extra incidences among its vertices)
+            if not isomorphism.GraphMatcher(anonymous_graph(image, self.object_key), pattern,
+                                            node_match=_same_label, edge_match=_same_slots).is_isomorphic():
+                continue
+            seq = to_partial_states(image)
+            start = min(f.step for f in image)
+            if not all(p.holds_in(_derived(self.factory, renamed)[start + l]) for l, p in enumerate(seq)):
+                return None                              # cannot happen: generators hold where made
+            return seq
+        return None
+
+    def _rename_state(self, state: tuple[int, ...], perm: dict[str, str]) -> tuple[int, ...]:
+        """π(s): the value of variable pred(π(args)) is π(value of pred(args)); variables whose
+        preimage is not in the task, or whose renamed value is not in its domain, keep theirs
+        (the factory's generators, not this state, define the instance)."""
+        inverse = {v: k for k, v in perm.items()}
+        out = list(state)
+        for w, (pred, args) in enumerate(self._parsed):
+            pre = self._index.get(_name(pred, tuple(inverse.get(a, a) for a in args)))
+            if pre is None:
+                continue
+            value = self.task.variables[pre].values[state[pre]]
+            values = self.task.variables[w].values
+            target = perm.get(value, value)
+            if target in values:
+                out[w] = values.index(target)
+        return tuple(out)
+
+
+def _derived(factory, states):
+    from gnppdsl.compile.semantics import derive
+
+    return [derive(factory.task, s) for s in states]
+
+
+def _name(pred: str, args: tuple[str, ...]) -> str:
+    return f"{pred}({', '.join(args)})" if args else pred
+
+
+def _complete(mapping: dict[str, str]) -> dict[str, str]:
+    """A bijection extending `mapping` (injective): images that are not sources map back to the
+    sources that are not images, in sorted order (the renaming of the whole state)."""
+    perm = dict(mapping)
+    free_targets = sorted(set(mapping.values()) - set(mapping))
+    free_sources = sorted(set(mapping) - set(mapping.values()))
+    perm.update(zip(free_targets, free_sources))
+    return perm
+
+
+def _shift(f: FactorInstance, by: int) -> FactorInstance:
+    from dataclasses import replace
+
+    return replace(f, step=f.step + by, variables=tuple(replace(v, step=v.step + by) for v in f.variables))
+
+
+def _same_label(a: dict, b: dict) -> bool:
+    return a["label"] == b["label"]
+
+
+def _same_slots(a: dict, b: dict) -> bool:
+    return a["slots"] == b["slots"]
