@@ -122,6 +122,35 @@ def test_deadline_stops_between_ipopt_runs():
     assert deadline_solver(FeasibilitySolver) is type(solver)
 
 
+def test_time_of_a_solve_stopped_inside_a_run_counts_in_solve_time():
+    """A solve stopped inside an ipopt run (the run's time limit, a signal) still adds the time
+    it spent to `solve_time` (Stats.nlp_time), measured against the clock around the call."""
+    import time
+
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+    from gnppdsl.nlp.graph import GraphNLP
+
+    c = compiled("p1_one_block")
+    plan_states = [c.task.initial]
+    graph = GraphNLP.from_factors(c.factory.factors(plan_states), c.factory.variables(plan_states))
+    solver = deadline_solver(FeasibilitySolver)(c.geometry)
+    original = FeasibilitySolver._run
+
+    def run_stopped_after_a_while(self, *args, **kwargs):
+        time.sleep(0.2)
+        raise TimeUp()
+
+    FeasibilitySolver._run = run_stopped_after_a_while
+    try:
+        t0 = time.perf_counter()
+        with pytest.raises(TimeUp):
+            solver.solve(graph)
+        wall = time.perf_counter() - t0
+    finally:
+        FeasibilitySolver._run = original
+    assert 0.2 <= solver.solve_time <= wall + 1e-6
+
+
 @pytest.mark.parametrize("order", ["full_first", "relaxed_first"])
 def test_orders_agree_and_are_checked_independently(order):
     c = compiled("p3_occupied")
