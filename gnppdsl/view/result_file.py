@@ -38,4 +38,33 @@ def load_result(path: str | Path) -> dict[str, Any]:
     if missing:
         raise UserError(f"{path}: no `{missing[0]}`: the file was written by an older gnpp; "
                         "solve again with `gnpp solve PROBLEM --json FILE`")
+    bad = _misshapen(data)
+    if bad:
+        raise UserError(f"{path}: `{bad}` is not as docs/result.schema.json describes it "
+                        "(an edited or truncated file?); solve again with `gnpp solve PROBLEM --json FILE`")
     return data
+
+
+def _misshapen(data: dict[str, Any]) -> str | None:
+    """The first field the viewer and the export read whose shape is not the schema's: the
+    plan's actions and each learned conflict (text, source, named partial states, factors).
+    Why by hand: jsonschema is a test dependency only, and these are the fields read below
+    `load_result` without further checks."""
+    plan = data.get("plan")
+    if not isinstance(plan, list) or not all(isinstance(a, str) for a in plan):
+        return "plan"
+    conflicts = data.get("conflicts", [])
+    if not isinstance(conflicts, list):
+        return "conflicts"
+    for k, c in enumerate(conflicts):
+        where = f"conflicts[{k}]"
+        if not isinstance(c, dict) or not isinstance(c.get("text"), str) or not isinstance(c.get("source"), str):
+            return where
+        named = c.get("named", [])
+        if not isinstance(named, list) or not all(
+                isinstance(st, list) and all(isinstance(f, list) and len(f) == 2 for f in st) for st in named):
+            return f"{where}.named"
+        factors = c.get("factors", [])
+        if not isinstance(factors, list) or not all(isinstance(f, str) for f in factors):
+            return f"{where}.factors"
+    return None

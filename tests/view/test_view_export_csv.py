@@ -93,3 +93,24 @@ def test_lab_world_poses_match_pinocchio_chain(solved_json):
             ref = matrix_to_se3(w.matrix(o))
             assert np.allclose(pose[:3], ref[:3], atol=1e-9)
             assert abs(abs(np.dot(pose[3:], ref[3:])) - 1) < 1e-9     # same rotation (q ~ -q)
+
+
+@pytest.mark.parametrize("field, value", [
+    ("plan", "pick(b1)"),
+    ("conflicts", [{"text": "x", "source": "nlp", "named": [[["parent(b1)"]]], "factors": []}]),
+    ("conflicts", [{"text": "x", "source": "nlp", "named": [], "factors": [3]}]),
+    ("conflicts", ["not a conflict"]),
+])
+def test_view_and_export_refuse_a_misshapen_result(solved_json, tmp_path, capsys, field, value):
+    """An edited result whose plan or conflicts are not of the schema's shape: a message naming
+    the field and exit 2 (they were a ValueError / AttributeError / KeyError traceback)."""
+    import json
+
+    data = {k: v for k, v in solved_json("planar/p3_occupied.pntc").items() if k != "_path"}
+    data[field] = value
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    assert main(["view", str(bad), "--html", str(tmp_path / "page.html")]) == 2
+    assert f"`{field}" in capsys.readouterr().err
+    assert main(["export", str(bad), "--csv", str(tmp_path / "csv")]) == 2
+    assert not (tmp_path / "page.html").exists()
