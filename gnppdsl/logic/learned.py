@@ -75,7 +75,10 @@ class LearnedConstraints:
             by_length.setdefault(len(seq), []).append(seq)
         for group in by_length.values():
             self._forbid_conflict(group)
-        self.conflicts.extend(new)
+            # `conflicts` in the order the instances were compiled: fd_guidance pairs the i-th
+            # conflict with the i-th Appendix-B head (in `new`'s order a mixed-length group paired
+            # heads wrongly and the guided task lost valid plans)
+            self.conflicts.extend(group)
         self._conflict_set.update(new)
         self.learned.append(tuple(new))
         return len(new)
