@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from gnppdsl.compile.factory import GraphNLPFactory
+from gnppdsl.compile.factory import SCALAR_FOLD, GraphNLPFactory
 from gnppdsl.compile.ground import Binding, error_at
 from gnppdsl.compile.sas import Operator, SASTask
 from gnppdsl.errors import UserError
@@ -48,10 +48,7 @@ def _t(x) -> tuple[float, ...]:
 
 
 _NUMERIC = {
-    "add": _ew(lambda a, b: a + b), "sub": _ew(lambda a, b: a - b), "mul": _ew(lambda a, b: a * b),
-    "div": _ew(lambda a, b: a / b), "neg": _ew(lambda a: -a), "pow": _ew(lambda a, b: a ** b),
-    "sqrt": _ew(math.sqrt), "sin": _ew(math.sin), "cos": _ew(math.cos), "atan2": _ew(math.atan2),
-    "abs": _ew(abs), "exp": _ew(math.exp), "min": _ew(min), "max": _ew(max),
+    **{fn: _ew(f) for fn, f in SCALAR_FOLD.items()},     # the factory's scalar folding, elementwise
     "norm": lambda a: math.hypot(*_t(a)), "sqnorm": lambda a: math.fsum(x * x for x in _t(a)),
     "dot": lambda a, b: math.fsum(x * y for x, y in zip(_t(a), _t(b), strict=True)),
     "sum": lambda a: math.fsum(_t(a)), "concat": lambda *xs: tuple(v for x in xs for v in _t(x)),

@@ -40,9 +40,12 @@ RobotDims = Callable[[str], tuple[int, Sequence[float] | None, Sequence[float] |
 
 __all__ = ["GraphNLPFactory", "RobotDims", "scene_robot_dims"]
 
-_FOLD = {
+#: the scalar value builtins folded at compile time (constants in templates, action costs);
+#: `math.pow`, not `**`: a negative base with a fractional exponent is a ValueError, not a
+#: complex number
+SCALAR_FOLD = {
     "add": lambda a, b: a + b, "sub": lambda a, b: a - b, "mul": lambda a, b: a * b,
-    "div": lambda a, b: a / b, "neg": lambda a: -a, "pow": lambda a, b: a ** b,
+    "div": lambda a, b: a / b, "neg": lambda a: -a, "pow": math.pow,
     "sqrt": math.sqrt, "sin": math.sin, "cos": math.cos, "abs": abs,
     "min": min, "max": max, "atan2": math.atan2, "exp": math.exp,
 }
@@ -509,9 +512,9 @@ class GraphNLPFactory:
             return self._scene_attr(fn, objs, ctx, e)
         if fn in BUILTINS:
             args = tuple(self._resolve(a, ctx, acc) for a in e.args)
-            if fn in _FOLD and all(isinstance(a, Num) for a in args):
+            if fn in SCALAR_FOLD and all(isinstance(a, Num) for a in args):
                 try:
-                    return Num(float(_FOLD[fn](*(a.value for a in args))), span=e.span)
+                    return Num(float(SCALAR_FOLD[fn](*(a.value for a in args))), span=e.span)
                 except (ValueError, ZeroDivisionError, OverflowError):
                     pass
             return _simplify_pose(Call(fn, args, span=e.span))

@@ -96,3 +96,16 @@ def test_cost_bound_in_user_units(tour):
     assert below.plan is None and below.status.value == "no plan"
     above = IncrementalPlanner(tour).optimal_plan(4, cost_bound=expected + 0.01)
     assert above.plan.cost == pytest.approx(expected, abs=4 * 0.5 / COST_RESOLUTION)
+
+
+def test_a_cost_with_a_complex_power_is_a_located_error(tmp_path, capsys):
+    """A negative base to a fractional power (the distance minus 1.1, to the 0.5) has no real
+    value: a located error naming the ground action, exit 2 (it was a TypeError traceback)."""
+    from delivery import DOMAIN
+
+    from gnppdsl.cli.main import main
+    path = write(tmp_path, "visited(p1)", DOMAIN.replace("step + norm", "(norm").replace(
+        "pos(pose0(b)))", "pos(pose0(b))) - 1.1) ^ 0.5"))
+    assert main(["check", str(tmp_path / "domain.pntc"), str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "domain.pntc:12:" in err and "pow fails" in err and "Traceback" not in err
