@@ -23,8 +23,6 @@ import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from gnppdsl.errors import UserError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -50,20 +48,40 @@ def footprint_radius(obj: "SceneObject") -> float:
     return 0.0
 
 
-def _ranges(obj: "SceneObject") -> tuple[np.ndarray, np.ndarray, tuple[float, float], float]:
+def _numbers(value) -> tuple[float, ...]:
+    return tuple(value) if isinstance(value, (list, tuple)) else (value,)
+
+
+def range_error(key: str, value) -> str | None:
+    """What is wrong with the value of a `random_*` attribute (None: nothing), by its shape
+    alone: the scene loader reports it at the key (`gnpp check`), `draw_scene` again for scenes
+    built in code. Pure Python: the loader stays free of numpy."""
+    v = _numbers(value)
+    if key == "random_xy":
+        if len(v) != 4 or v[0] > v[2] or v[1] > v[3]:
+            return f"random_xy must be [x_lo, y_lo, x_hi, y_hi] with lo <= hi (got {list(v)})"
+    elif key == "random_yaw":
+        if len(v) == 1:
+            v = v * 2
+        if len(v) != 2 or v[0] > v[1]:
+            return f"random_yaw must be [lo, hi] in radians with lo <= hi, or one angle (got {list(v)})"
+    elif key == "random_clearance":
+        if len(v) != 1 or not v[0] >= 0:
+            return f"random_clearance must be one distance >= 0 (got {value})"
+    return None
+
+
+def _ranges(obj: "SceneObject") -> tuple[tuple[float, float], tuple[float, float], tuple[float, float], float]:
     a = obj.attributes
     where = f"{obj.source}: object '{obj.name}'" if obj.source else f"object '{obj.name}'"
-    xy = np.asarray(a["random_xy"], float).reshape(-1)
-    if xy.size != 4 or not np.all(np.isfinite(xy)) or xy[0] > xy[2] or xy[1] > xy[3]:
-        raise UserError(f"{where}: random_xy must be [x_lo, y_lo, x_hi, y_hi] with lo <= hi "
-                        f"(got {list(a['random_xy'])})")
-    yaw = a.get("random_yaw", (0.0, 0.0))
-    yaw = tuple(float(v) for v in (yaw if isinstance(yaw, (list, tuple)) else (yaw, yaw)))
-    if len(yaw) != 2 or yaw[0] > yaw[1]:
-        raise UserError(f"{where}: random_yaw must be [lo, hi] in radians with lo <= hi (got {list(yaw)})")
-    gap = float(a.get("random_clearance", DEFAULT_CLEARANCE))
-    if not gap >= 0:
-        raise UserError(f"{where}: random_clearance must be >= 0 (got {gap})")
+    for key in ("random_xy", "random_yaw", "random_clearance"):
+        problem = range_error(key, a[key]) if key in a else None
+        if problem:
+            raise UserError(f"{where}: {problem}")
+    xy = tuple(float(x) for x in _numbers(a["random_xy"]))
+    yaw = _numbers(a.get("random_yaw", 0.0))
+    yaw = (float(yaw[0]), float(yaw[-1]))
+    gap = float(_numbers(a.get("random_clearance", DEFAULT_CLEARANCE))[0])
     return xy[:2], xy[2:], yaw, gap
 
 
@@ -85,12 +103,15 @@ def draw_scene(scene: "Scene", seed: int) -> "Scene":
     names = random_objects(scene)
     if not names:
         return scene
+    import numpy as np            # here: the scene loader imports this module for `range_error`
+
     rng = np.random.default_rng(int(seed))
     placed: list[tuple[np.ndarray, float, float]] = []          # (centre, radius, clearance)
     objects = dict(scene.objects)
     for name in names:
         obj = scene.objects[name]
         lo, hi, yaw, gap = _ranges(obj)
+        lo, hi = np.array(lo), np.array(hi)
         r = footprint_radius(obj)
         for _ in range(MAX_DRAWS):
             p = lo + (hi - lo) * rng.random(2)
@@ -118,4 +139,4 @@ def draw_instance(problem: "Problem", seed: int) -> "Problem":
     return replace(problem, scene=draw_scene(scene, seed))
 
 
-__all__ = ["draw_instance", "draw_scene", "random_objects", "footprint_radius"]
+__all__ = ["draw_instance", "draw_scene", "random_objects", "footprint_radius", "range_error"]

@@ -15,6 +15,7 @@ from typing import Any
 
 from gnppdsl.inputs import ROBOT_SUFFIXES
 from gnppdsl.ir.expr import Span
+from gnppdsl.ir.instances import range_error
 from gnppdsl.ir.scene_model import Scene, SceneObject, SceneRobot, SceneShape
 from gnppdsl.lang.diagnostics import Reporter, did_you_mean, read_source
 
@@ -417,7 +418,10 @@ class _Loader:
         for k, (kn, vn) in m.items():
             if k not in OBJECT_KEYS:
                 v = self.extra(kn, k, vn, OBJECT_KEYS, f"object '{name}'", name)
-                if v is not None:
+                problem = range_error(k, v) if v is not None and k.startswith("random_") else None
+                if problem:
+                    self.error(vn, problem, "number", "docs/scene.md, \"Randomised instances\"")
+                elif v is not None:
                     attrs[k] = v
         if "file" in m and not ("shape" in m and self.scalar(m["shape"][1]) == "mesh"):
             self.error(m["file"][0], "`file:` is only used with `shape: mesh`")

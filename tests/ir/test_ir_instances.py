@@ -63,18 +63,33 @@ def test_sorting_family_is_reproducible_inside_its_ranges_and_apart():
     assert problem.scene.objects["red1"].pose[:2] == (-0.3, -0.25)
 
 
-def test_bad_ranges_and_fixed_scenes_are_located_user_errors(tmp_path):
+def test_a_fixed_scene_has_no_instances():
     with pytest.raises(UserError, match="no `random_xy` range"):
         draw_instance(load_problem(PLANAR / "p1_one_block.pntc"), 0)
+    assert main(["solve", str(PLANAR / "p1_one_block.pntc"), "--instance", "0", "--quiet"]) == 2
+
+
+@pytest.mark.parametrize("attribute, message", [
+    ("random_xy: [0.5, 0, -0.5, 0.2]", "random_xy must be"),      # lo > hi
+    ("random_xy: 3", "random_xy must be"),                          # a scalar (was a TypeError)
+    ("random_xy: [0, 0, 1, 1], random_yaw: [0, 1, 2]", "random_yaw must be"),
+    ("random_xy: [0, 0, 1, 1], random_clearance: [1, 2]", "random_clearance must be"),   # (TypeError)
+    ("random_xy: [0, 0, 1, 1], random_clearance: -1", "random_clearance must be"),
+])
+def test_bad_ranges_are_located_by_gnpp_check(tmp_path, capsys, attribute, message):
+    """A malformed `random_*` attribute is an error of the scene at its value, found by `gnpp
+    check` (before, only `--instance` found some of them, some as a traceback)."""
     shutil.copy(PLANAR / "domain.pntc", tmp_path)
     shutil.copy(PLANAR / "p1_one_block.pntc", tmp_path)
     text = (PLANAR / "p1_one_block.yaml").read_text()
-    bad = text.replace("radius: 0.05, color: red}", "radius: 0.05, color: red, random_xy: [0.5, 0, -0.5, 0.2]}")
+    bad = text.replace("radius: 0.05, color: red}", f"radius: 0.05, color: red, {attribute}}}")
     assert bad != text
     (tmp_path / "p1_one_block.yaml").write_text(bad)
-    with pytest.raises(UserError, match=r"p1_one_block.yaml:\d+:\d+: object 'b1': random_xy must be"):
-        draw_instance(load_problem(tmp_path / "p1_one_block.pntc"), 3)
-    assert main(["solve", str(PLANAR / "p1_one_block.pntc"), "--instance", "0", "--quiet"]) == 2
+    line = 1 + bad[:bad.index(attribute)].count("\n")
+    assert main(["check", str(tmp_path / "p1_one_block.pntc")]) == 2
+    err = capsys.readouterr().err
+    assert f"p1_one_block.yaml:{line}:" in err and message in err and "Traceback" not in err
+    assert main(["solve", str(tmp_path / "p1_one_block.pntc"), "--instance", "0", "--quiet"]) == 2
 
 
 def test_bench_runs_a_planar_family_with_every_solution_verified(tmp_path, capsys):
