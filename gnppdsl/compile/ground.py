@@ -24,9 +24,9 @@ __all__ = [
     "substitute", "ground_rules", "error_at", "MARKER", "FINAL", "RuleMatcher",
 ]
 
-MARKER = "initial"
+MARKER = m.RESERVED_LOGIC_NAMES[0]
 """Name of the marker variable (values false/true, true only in s_0) used by `initial` rules."""
-FINAL = "final"
+FINAL = m.RESERVED_LOGIC_NAMES[1]
 """Name of the derived variable (true iff the goal holds: only in s_n) used by `final` rules."""
 _MARKERS = {"initial": MARKER, "final": FINAL}
 _KINDS = ("state", "transition", "always", "initial", "final")

@@ -375,6 +375,11 @@ class TemplateCall:
     span: Span | None = field(**_SPAN)
 
 
+#: names of the state variable and step the compiler adds for `: initial =>` and `: final =>`
+#: rules (compile.ground.MARKER, FINAL): a domain cannot declare them
+RESERVED_LOGIC_NAMES = ("initial", "final")
+
+
 @dataclass(frozen=True)
 class Rule:
     """`rule pick(o: block, g: gripper, P: place) where ... : p -> p' => calls tags ...`.

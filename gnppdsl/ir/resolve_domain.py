@@ -129,6 +129,10 @@ class DomainResolver:
                     self.ws._space(d.space, None, result=True), self.name, d.span), "primitive")
         # logic
         for d in items:
+            if isinstance(d, (ast.StateDecl, ast.DerivedDecl, ast.ActionDecl)) and d.name.value in M.RESERVED_LOGIC_NAMES:
+                self.err(d.name.span, f"'{d.name.value}' is reserved: the compiler adds a state variable "
+                         f"and a step of that name for `: {d.name.value} =>` rules", "reserved")
+                continue
             if isinstance(d, ast.StateDecl):
                 self.state_decl(d)
             elif isinstance(d, ast.DerivedDecl):
@@ -145,7 +149,7 @@ class DomainResolver:
             body = logic.formula(d.body, {p.name: p.types for p in dv.params})
             self.derived[name] = M.Derived(name, dv.params, body if body is not None else M.And(()), d.span)
         for d in items:
-            if isinstance(d, ast.ActionDecl):
+            if isinstance(d, ast.ActionDecl) and d.name.value not in M.RESERVED_LOGIC_NAMES:
                 a = logic.action(d)
                 if a is not None:
                     self.ws._add_unique(self.actions, d.name, a, "action")

@@ -85,6 +85,15 @@ def test_reserved_type_name(tmp_path):
     at(check(tmp_path, "type SE2\n"), 15, 6, "reserved")
 
 
+@pytest.mark.parametrize("decl, col", [("state final : bool\n", 7), ("action initial() { }\n", 8),
+                                       ("derived final() := free(g)\n", 9)])
+def test_names_of_the_compiled_rule_markers_are_reserved(tmp_path, decl, col):
+    """`initial` and `final` are the state variable and step the compiler adds for `: initial`
+    and `: final` rules: declaring one passed check and failed at compile without a location."""
+    x = at(check(tmp_path, decl, problem=PROBLEM), 15, col, "reserved")
+    assert "reserved" in x.message
+
+
 def test_unknown_state_variable_in_action(tmp_path):
     d = check(tmp_path, """\
         action pick(o: block, g: gripper) {
