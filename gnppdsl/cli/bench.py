@@ -195,8 +195,6 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise UserError("--seeds must be >= 1")
     if args.instances is not None and args.instances < 1:
         raise UserError("--instances must be >= 1")
-    if not 0 <= args.seed <= 2**32 - 1:
-        raise UserError(f"--seed {args.seed}: is out of range [0, {2**32 - 1:,}]")
     if not math.isfinite(args.time_limit) or args.time_limit <= 0:
         raise UserError("--time-limit must be positive and finite")
     if args.workers < 1:
@@ -217,6 +215,13 @@ def _check_planner(args: argparse.Namespace, specs: list[AlgorithmSpec]) -> None
         if other:
             raise UserError(f"--planner fd serves the gnpp algorithms only, not {', '.join(other)} "
                             f"(choose --algorithms gnpp_..., or --planner auto / sequential)")
+    if args.anytime:
+        # the anytime search improves a GNPP or R-LGP solution; One-way has no incumbent to
+        # improve (SolveOptions.validated refuses it per run: here before any run)
+        other = [s.label for s in specs if s.algorithm not in ("gnpp", "rlgp")]
+        if other:
+            raise UserError(f"--anytime serves the gnpp and rlgp algorithms, not {', '.join(other)} "
+                            f"(choose --algorithms without them)")
 
 
 def _write_text(path: str, text: str, option: str) -> None:

@@ -57,9 +57,15 @@ def check_ranges(args: argparse.Namespace) -> None:
     time limit or a tolerance of 1e3 are errors naming the option, exit 2."""
     from gnppdsl.errors import UserError
 
+    # an instance is a seed of the scene's draw (`gnppdsl.ir.instances`): the seed's range; in
+    # `gnpp bench`, the last instance of --seed S --instances N is S + N - 1
     instance = getattr(args, "instance", None)
-    if instance is not None and not 0 <= instance <= 2**32 - 1:
-        raise UserError(f"--instance {instance}: is out of range [0, {2**32 - 1:,}]")
+    if getattr(args, "instances", None):
+        instance, option = args.seed + args.instances - 1, "--seed + --instances - 1"
+    else:
+        option = "--instance"
+    if instance is not None and setting_problem("seed", instance) is not None:
+        raise UserError(f"{option} {instance}: {setting_problem('seed', instance)}")
     for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime"):
         value = getattr(args, key, None)
         if value is None:

@@ -152,3 +152,15 @@ def test_bench_planner_reaches_the_solver(tmp_path, capsys):
     # Fast Downward cannot enumerate plans by length (One-way): refused before any run
     assert bench(SMALL[1], "--seeds", "1", "--algorithms", "oneway,gnpp_trn", "--planner", "fd") == 2
     assert "--planner fd serves the gnpp algorithms only, not oneway" in capsys.readouterr().err
+
+
+def test_bench_refuses_options_its_runs_would_refuse_before_any_run(tmp_path, capsys):
+    """--anytime with One-way (no incumbent to improve) and a last instance --seed + --instances
+    - 1 beyond the seed range are refused up front, naming the options, exit 2 (they became an
+    error row per run, or an instance `gnpp solve --instance` refuses)."""
+    assert bench(SMALL[1], "--seeds", "1", "--algorithms", "oneway,gnpp_trn", "--anytime", "1") == 2
+    assert "--anytime serves the gnpp and rlgp algorithms, not oneway" in capsys.readouterr().err
+    assert bench(SMALL[1], "--algorithms", "gnpp_trn", "--seed", str(2**32 - 1), "--instances", "2") == 2
+    assert "--seed + --instances - 1 4294967296" in capsys.readouterr().err
+    assert bench(SMALL[1], "--algorithms", "gnpp_trn", "--seed", "-1") == 2
+    assert "--seed -1" in capsys.readouterr().err
