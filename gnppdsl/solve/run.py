@@ -129,17 +129,24 @@ class Run(ReachabilityCosts):
         Such a sweeping claim gets a stricter check first: the subgraph is solved again from
         `sweeping_restarts` random starts; any solution refutes it (a false infeasible verdict,
         e.g. a local minimum). True if the conflict is not sweeping or stays infeasible."""
-        from gnppdsl.nlp.graph import GraphNLP
-
         if any(p.facts for p in to_partial_states(sub_factors)):
             return True
         solver = self.new_solver()
         solver.options.restarts = max(solver.options.restarts, self.sweeping_restarts)
         solver.options.noise = max(solver.options.noise, 1.0)
-        r = solver.solve(GraphNLP(list(sub_factors)), seed=self.options.seed + 1)
+        return self.infeasible(solver, sub_factors, self.options.seed + 1)
+
+    def infeasible(self, solver, factors: Sequence[FactorInstance], seed: int) -> bool:
+        """The verdict of one stricter re-solve of `factors` (a sweeping conflict's check, a
+        minimised conflict's smaller subgraph). A run cut short by the run's deadline or by
+        ipopt's own time limit ("walltime", as `FeasibilityCheck.solve` reads it) is no
+        verdict: TimeUp."""
+        from gnppdsl.nlp.graph import GraphNLP
+
+        r = solver.solve(GraphNLP(list(factors)), seed=seed)
         self.nlp_calls += 1
-        if not r.feasible and time.perf_counter() >= self.deadline:
-            raise TimeUp()                  # cut short: not a confirmation
+        if not r.feasible and (time.perf_counter() >= self.deadline or "walltime" in str(r.status).lower()):
+            raise TimeUp()
         return not r.feasible
 
     def minimised(self, sub_factors: Sequence[FactorInstance]) -> tuple[FactorInstance, ...]:
@@ -147,17 +154,10 @@ class Run(ReachabilityCosts):
         subgraph is solved as the conflict itself is confirmed (the solver's restarts), so a
         dropped fact rests on the same infeasible verdict as the conflict."""
         from gnppdsl.conflicts.minimise import minimise_facts
-        from gnppdsl.nlp.graph import GraphNLP
-
-        def is_infeasible(factors: tuple[FactorInstance, ...]) -> bool:
-            r = self.new_solver().solve(GraphNLP(list(factors)), seed=self.options.seed)
-            self.nlp_calls += 1
-            if not r.feasible and time.perf_counter() >= self.deadline:
-                raise TimeUp()               # cut short: not a verdict
-            return not r.feasible
 
         t0 = time.perf_counter()
-        out, checks = minimise_facts(sub_factors, is_infeasible)
+        out, checks = minimise_facts(
+            sub_factors, lambda factors: self.infeasible(self.new_solver(), factors, self.options.seed))
         self.stats.minimise_time += time.perf_counter() - t0
         self.stats.minimise_checks += checks
         return out

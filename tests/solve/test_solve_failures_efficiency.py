@@ -330,3 +330,25 @@ def test_a_subgraph_starts_from_a_convergence_point_only_when_it_nearly_holds(sh
         assert at_point < CLOSE_START
     if r.feasible:
         assert max_violation(s.factor_instances, r.values, c.geometry)[0] <= 1e-6
+
+
+def test_a_stricter_resolve_cut_short_by_ipopt_is_no_verdict():
+    """`Run.infeasible` (a sweeping conflict's check, the minimiser's smaller subgraphs): an
+    infeasible answer whose ipopt run hit its own time limit ("walltime") is TimeUp, not a
+    verdict, as in `FeasibilityCheck.solve`; a real infeasible answer is True."""
+    from types import SimpleNamespace
+
+    from gnppdsl.solve.run import Run
+
+    class Answer:
+        def __init__(self, status):
+            self.status = status
+
+        def solve(self, graph, seed):
+            return SimpleNamespace(feasible=False, status=self.status)
+
+    run = SimpleNamespace(deadline=float("inf"), nlp_calls=0)
+    assert Run.infeasible(run, Answer("Infeasible_Problem_Detected"), [], 0) is True
+    with pytest.raises(TimeUp):
+        Run.infeasible(run, Answer("Maximum_WallTime_Exceeded"), [], 0)
+    assert run.nlp_calls == 2
