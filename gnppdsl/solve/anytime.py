@@ -90,8 +90,6 @@ def nonnegative(expr) -> bool:
             or nonnegative(args[0])
     if fn in ("add", "mul", "div", "max", "min"):
         return all(nonnegative(a) for a in args)
-    if fn == "sum":
-        return False
     return False
 
 
@@ -111,8 +109,14 @@ def objective_lower_bound(domain) -> float | None:
 
 
 class Anytime(Coverage):
-    """The anytime phase of a GNPP / R-LGP solve (module docstring); `Loop.attempt` (the
-    class deriving from this one) evaluates one plan exactly as the loop does."""
+    """The anytime phase of a GNPP / R-LGP solve (module docstring), over `attempt`, which the
+    loop (`Loop`, deriving from this class) defines."""
+
+    def attempt(self, plan) -> Result | None:
+        """Evaluate one logical plan exactly as the loop does (its graph-NLP, Alg. 1, conflicts,
+        active set, verification, optimisation): the verified result, or None when infeasible.
+        Declared here because `improve` calls it; `Loop.attempt` is the implementation."""
+        raise NotImplementedError("Anytime.attempt is Loop.attempt: use Loop")
 
     def improve(self, first: Result) -> Result:
         """Search cheaper plans from the verified first solution `first` for
