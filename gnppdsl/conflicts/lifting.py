@@ -31,13 +31,15 @@ most `limit`), no NLP.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Mapping, Sequence
 
 from networkx.algorithms import isomorphism
 
 from gnppdsl.compile.factors import FactorInstance
+from gnppdsl.compile.ground import var_name
 from gnppdsl.compile.sas import PartialState, SASTask
+from gnppdsl.compile.semantics import derive
 from gnppdsl.conflicts.mapping import to_partial_states
 from gnppdsl.conflicts.semantic import anonymous_graph, body_objects
 
@@ -150,7 +152,8 @@ class Lifter:
                 continue
             seq = to_partial_states(image)
             start = min(f.step for f in image)
-            if not all(p.holds_in(_derived(self.factory, renamed)[start + l]) for l, p in enumerate(seq)):
+            derived = [derive(self.factory.task, st) for st in renamed]     # once, not per state
+            if not all(p.holds_in(derived[start + l]) for l, p in enumerate(seq)):
                 return None                              # cannot happen: generators hold where made
             return seq
         return None
@@ -162,7 +165,7 @@ class Lifter:
         inverse = {v: k for k, v in perm.items()}
         out = list(state)
         for w, (pred, args) in enumerate(self._parsed):
-            pre = self._index.get(_name(pred, tuple(inverse.get(a, a) for a in args)))
+            pre = self._index.get(var_name(pred, tuple(inverse.get(a, a) for a in args)))
             if pre is None:
                 continue
             value = self.task.variables[pre].values[state[pre]]
@@ -171,16 +174,6 @@ class Lifter:
             if target in values:
                 out[w] = values.index(target)
         return tuple(out)
-
-
-def _derived(factory, states):
-    from gnppdsl.compile.semantics import derive
-
-    return [derive(factory.task, s) for s in states]
-
-
-def _name(pred: str, args: tuple[str, ...]) -> str:
-    return f"{pred}({', '.join(args)})" if args else pred
 
 
 def _complete(mapping: dict[str, str]) -> dict[str, str]:
@@ -194,8 +187,6 @@ def _complete(mapping: dict[str, str]) -> dict[str, str]:
 
 
 def _shift(f: FactorInstance, by: int) -> FactorInstance:
-    from dataclasses import replace
-
     return replace(f, step=f.step + by, variables=tuple(replace(v, step=v.step + by) for v in f.variables))
 
 

@@ -25,6 +25,7 @@ Vertex ids keep the relative time (`x|pose(b1)|2`) for readability and stable se
 from __future__ import annotations
 
 import hashlib
+import weakref
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
@@ -117,15 +118,15 @@ def anonymous_graph(factors: Iterable[FactorInstance], object_key: ObjectKey) ->
     the same NLP up to renaming objects of equal geometry (used to lift conflicts,
     `gnppdsl.conflicts.lifting`; the database keeps the named labels of `semantic_graph`)."""
     g = nx.Graph()
+    try:
+        texts = _ANON.setdefault(object_key, {})
+    except TypeError:                       # not weakly referenceable (a builtin's method): no cache
+        texts = {}
     for i, f in enumerate(factors):
         fid = ("h", i)
-        key = (f.body, id(object_key))
-        text = _ANON.get(key)
+        text = texts.get(f.body)
         if text is None:
-            text = hashlib.sha256(anonymous_text(f.body, object_key).encode()).hexdigest()[:20]
-            if len(_ANON) > 200_000:
-                _ANON.clear()
-            _ANON[key] = text
+            text = texts[f.body] = hashlib.sha256(anonymous_text(f.body, object_key).encode()).hexdigest()[:20]
         g.add_node(fid, label=f"h|{f.template}|{len(f.variables)}|{text}")
         slots: dict[tuple, list[int]] = {}
         for j, v in enumerate(f.variables):
@@ -138,7 +139,9 @@ def anonymous_graph(factors: Iterable[FactorInstance], object_key: ObjectKey) ->
     return g
 
 
-_ANON: dict[Any, str] = {}
+#: anonymous body texts per object key (one per compiled problem): weak, so a problem's texts go
+#: with it and a later problem never meets them (an `id()` key could be reused after collection)
+_ANON: "weakref.WeakKeyDictionary[ObjectKey, dict[Any, str]]" = weakref.WeakKeyDictionary()
 
 
 @dataclass

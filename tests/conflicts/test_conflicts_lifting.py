@@ -163,3 +163,28 @@ def test_rule_factors_are_the_factors_of_full_matching():
     assert factory.rule_factors(states, [("apart", (("a", "b2"), ("b", "b1")), 0)]) == []
     assert factory.rule_factors(states, [("held", (("o", "s1"), ("g", "g")), 1)]) == []
     assert len(factory.rule_factors(states, [("apart", (("a", "b1"), ("b", "b2")), 0)])) == 1
+
+
+def test_anonymous_texts_belong_to_their_object_key():
+    """Each problem's object key has its own anonymous texts (a key that names other geometry
+    gives other labels), and they go with the key (the cache was keyed by id(), which a later
+    problem's key can reuse after collection and then read the earlier problem's texts)."""
+    import gc
+
+    from gnppdsl.conflicts.semantic import _ANON, anonymous_graph
+
+    c = gnppdsl.load_and_compile(str(PLANAR.parent / "lab" / "lab1.pntc"))     # bodies name bodies (sdist)
+    factors = [f for f in c.factory.factors([c.task.initial, c.task.initial]) if "Obj(" in repr(f.body)][:4]
+    assert factors
+
+    def labels(key):
+        return sorted(d["label"] for _, d in anonymous_graph(factors, key).nodes(data=True))
+
+    first = lambda name: "shape-A"          # noqa: E731 - the form of `compiled.object_keys`
+    second = lambda name: "shape-B"         # noqa: E731
+    assert labels(first) != labels(second)  # the key is in the text: geometry matters
+    assert first in _ANON and second in _ANON
+    before = len(_ANON)
+    del first
+    gc.collect()
+    assert len(_ANON) == before - 1         # the first problem's texts went with its key
