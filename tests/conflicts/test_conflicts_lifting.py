@@ -144,8 +144,12 @@ def test_conflicts_grow_with_kinds_of_failure_not_objects(tmp_path, planner):
         total[lift] = r.stats.conflicts
         if lift:
             assert r.stats.conflict_instances > r.stats.conflicts
-    assert len(small[True]) <= 1 and len(small[False]) >= len(small[True]), small
-    assert total[True] <= total[False], total
+    # sequential (shortest plans first) tries the blocker in each small region: unlifted one
+    # conflict per region (3), lifted one; FD's plans never put it there, its savings are in the
+    # other conflicts (measured: 6 -> 4 in both modes)
+    if planner == "sequential":
+        assert len(small[True]) <= 1 < len(small[False]), small
+    assert total[True] < total[False], total
 
 
 def test_rule_factors_are_the_factors_of_full_matching():
