@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from gnppdsl.compile.ground import error_at
 from gnppdsl.compile.pddl import _Namer, pddl_name
 from gnppdsl.errors import UserError
 from gnppdsl.ir import model as m
@@ -118,7 +119,7 @@ class _Writer:
                 for tp, a in zip(dp.params, f.args):
                     inner[tp.name] = self.term(a, env)
                 if depth > 64:
-                    raise UserError(f"PDDL: derived predicate {f.pred} is recursive; cannot inline it")
+                    raise error_at(dp.span, f"PDDL: derived predicate {f.pred} is recursive; cannot inline it")
                 body = self.formula(dp.body, inner, depth + 1)
             else:
                 body = "(" + " ".join([self.preds.forward[("dp", f.pred)],
@@ -130,8 +131,8 @@ class _Writer:
                 return f"(= {a} {b})"
             if f.op == "!=":
                 return f"(not (= {a} {b}))"
-            raise UserError(f"PDDL has no object ordering: cannot write `{f.op}` (write the ground "
-                            "task instead: `gnpp compile --emit pddl-ground`)")
+            raise error_at(getattr(f, "span", None), f"PDDL has no object ordering: cannot write `{f.op}` "
+                           "(write the ground task instead: `gnpp compile --emit pddl-ground`)")
         if isinstance(f, m.And):
             return self.conj([self.formula(x, env, depth) for x in f.items])
         if isinstance(f, m.Or):
@@ -169,8 +170,8 @@ class _Writer:
 
         def visit(n, stack):
             if n in stack:
-                raise UserError(f"PDDL: derived predicate {n} is recursive; it cannot be inlined "
-                                "(keep the derived predicates)")
+                raise error_at(self.d.derived[n].span, f"PDDL: derived predicate {n} is recursive; it "
+                               "cannot be inlined (keep the derived predicates)")
             if n in seen:
                 return
             for k in deps[n]:
@@ -246,8 +247,9 @@ class _Writer:
             pre = self.conj([self.formula(f, env) for f in act.pre])
             effs = [x for e in act.effects for x in self.effect(e, env)]
             if act.cost_expr is not None or not float(act.cost).is_integer():
-                raise UserError(f"PDDL: the cost of action {name} is not an integer constant; the "
-                                f"lifted export cannot write it (the grounded one can)")
+                raise error_at(getattr(act.cost_expr, "span", None) or act.span,
+                               f"PDDL: the cost of action {name} is not an integer constant; the "
+                               f"lifted export cannot write it (the grounded one can: --emit pddl-ground)")
             effs.append(f"(increase (total-cost) {int(act.cost)})")
             lines.append(f"  (:action {an}\n    :parameters ({decl})\n    :precondition {pre}\n"
                          f"    :effect (and {' '.join(effs)}))")

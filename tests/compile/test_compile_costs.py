@@ -109,3 +109,17 @@ def test_a_cost_with_a_complex_power_is_a_located_error(tmp_path, capsys):
     assert main(["check", str(tmp_path / "domain.pntc"), str(path)]) == 2
     err = capsys.readouterr().err
     assert "domain.pntc:12:" in err and "pow fails" in err and "Traceback" not in err
+
+
+def test_lifted_pddl_refuses_a_cost_expression_at_its_location(tmp_path, capsys):
+    """The lifted PDDL export cannot write a cost expression: the error is at the expression
+    (file:line:col), exit 2; the grounded export writes the ground costs."""
+    from delivery import DOMAIN
+
+    from gnppdsl.cli.main import main
+    path = write(tmp_path, "visited(p1)", DOMAIN)
+    args = ["compile", str(tmp_path / "domain.pntc"), str(path), "--emit"]
+    assert main(args + ["pddl", "-o", str(tmp_path / "lifted")]) == 2
+    err = capsys.readouterr().err
+    assert "domain.pntc:12:" in err and "not an integer constant" in err
+    assert main(args + ["pddl-ground", "-o", str(tmp_path / "ground")]) == 0
