@@ -33,8 +33,7 @@ def test_signal_during_a_solve(tmp_path, sig, code):
     assert "plans 1" in first, first
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
-    if proc.returncode == 0:
-        pytest.skip("the solve ended before the signal arrived")       # p7 solves in seconds
+    assert proc.returncode != 0, "p7 ended before the signal arrived: the test needs a longer solve"
     assert proc.returncode == code, err
     assert f"interrupted by {sig.name}" in err and "Traceback" not in err
     assert json.loads(out.read_text())["status"] == "interrupted"
