@@ -51,8 +51,10 @@ def body_hash(body: tuple) -> str:
     return h
 
 
-def variable_label(v: VarInstance) -> str:
-    return f"x|{v.key}|{v.space}|{v.dim}|{v.waypoints}|{v.lower}|{v.upper}"
+def variable_label(v: VarInstance, named: bool = True) -> str:
+    """A variable vertex's label: its key (`q(g)`), or only its kind when not `named` (the
+    anonymous graph of lifting), then space, dimension, waypoints and bounds."""
+    return f"x|{v.key if named else v.kind}|{v.space}|{v.dim}|{v.waypoints}|{v.lower}|{v.upper}"
 
 
 ObjectKey = Callable[[str], str]
@@ -132,7 +134,7 @@ def anonymous_graph(factors: Iterable[FactorInstance], object_key: ObjectKey) ->
         for j, v in enumerate(f.variables):
             vid = ("x", v.key, v.step)
             if vid not in g:
-                g.add_node(vid, label=f"x|{v.kind}|{v.space}|{v.dim}|{v.waypoints}|{v.lower}|{v.upper}")
+                g.add_node(vid, label=variable_label(v, named=False))
             slots.setdefault(vid, []).append(j)
         for x, js in slots.items():
             g.add_edge(fid, x, slots=",".join(map(str, js)))
