@@ -246,9 +246,11 @@ class _Builder:
     def goal(self) -> PartialState:
         conj = self.conjunction(self.problem.goal, {}, "goal")
         if conj is None:
-            raise error_at(self.problem.span,
-                                    "the goal can never hold (a value outside a variable's domain "
-                                    "or contradictory goal facts)")
+            # at the goal's first item (the problem's own span is its first line)
+            first = next((g for g in self.problem.goal if getattr(g, "span", None) is not None), None)
+            raise error_at(first.span if first is not None else self.problem.span,
+                           "the goal can never hold (a value outside a variable's domain "
+                           "or contradictory goal facts)")
         return PartialState.of(conj)
 
     def operators(self, marker: int | None, final: int | None = None) -> list[Operator]:

@@ -72,3 +72,15 @@ def test_validator_rejects_a_plan_that_misses_every_disjunct(tmp_path):
     ops = [names.index("move(r, p0, p1)"), names.index("move(r, p1, p2)")]
     res = validate_plan(task, ops)
     assert not res.valid and "goal" in res.error
+
+
+def test_a_goal_that_can_never_hold_is_located_at_the_goal(tmp_path, capsys):
+    """Contradictory goal facts: the compile error points at the goal (line 5 of the problem),
+    not at the problem's first line."""
+    from delivery import write
+
+    from gnppdsl.cli.main import main
+    path = write(tmp_path, "at(r) = p1  at(r) = p2")
+    assert main(["compile", str(tmp_path / "domain.pntc"), str(path), "-o", str(tmp_path / "t.sas")]) == 2
+    err = capsys.readouterr().err
+    assert "tour.pntc:5:" in err and "the goal can never hold" in err
