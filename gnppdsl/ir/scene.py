@@ -106,6 +106,14 @@ def _finite(v) -> bool:
         return False
 
 
+def _looks_numeric(text: str) -> bool:
+    """A YAML string a user meant as a number (`1e300`, which YAML 1.1 reads as text)."""
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
+
+
 def _short(text: str, n: int = 80) -> str:
     """A path as quoted in a message (a 10,000-character name is cut)."""
     return text if len(text) <= n else f"{text[:n]}... ({len(text):,} characters)"
@@ -253,6 +261,10 @@ class _Loader:
                 return None
             self.attr_spans[(entity, key)] = self.span(key_node)
             return float(v)
+        if isinstance(v, str) and _looks_numeric(v):
+            self.error(val_node, f"attribute '{key}' must be a number, but YAML reads {v!r} as text",
+                       "number", "YAML 1.1 needs a dot in an exponent number: write 1.0e300")
+            return None
         self.unknown_key(key_node, key, known, what)
         return None
 

@@ -75,6 +75,7 @@ def test_a_fixed_scene_has_no_instances():
     ("random_xy: [0, 0, 1, 1], random_yaw: [0, 1, 2]", "random_yaw must be"),
     ("random_xy: [0, 0, 1, 1], random_clearance: [1, 2]", "random_clearance must be"),   # (TypeError)
     ("random_xy: [0, 0, 1, 1], random_clearance: -1", "random_clearance must be"),
+    ("random_xy: [0, 0, 1, 1], random_clearance: 1e-2", "YAML reads '1e-2' as text"),   # was "unknown key"
 ])
 def test_bad_ranges_are_located_by_gnpp_check(tmp_path, capsys, attribute, message):
     """A malformed `random_*` attribute is an error of the scene at its value, found by `gnpp
