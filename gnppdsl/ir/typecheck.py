@@ -429,7 +429,6 @@ class Checker:
             want = str(len(params)) if n_required == len(params) else f"{n_required} to {len(params)}"
             return self.err(e.span, f"{what} '{name}' takes {want} arguments, got {len(e.args)}", "arity")
         args = []
-        anys: dict = {}
         for a, p in zip(e.args, params):
             if p.kind == "object":
                 x, t = self.obj(a)

@@ -8,7 +8,6 @@ the kill, byte for byte.
 from __future__ import annotations
 
 import csv
-import os
 import signal
 import subprocess
 import sys
