@@ -26,7 +26,9 @@ from pathlib import Path
 
 from gnppdsl.nlp.jit_codegen import generate_c
 
-COMPILE_TIMEOUT = 300.0     # seconds for one compiler run (niced: slower than in the foreground)
+COMPILE_CPU_LIMIT = 300    # CPU seconds for one compiler run (RLIMIT_CPU of the compiler)
+COMPILE_TIMEOUT = 3600.0   # wall seconds: generous, since a niced compile on a busy machine
+                           # waits for CPU; the CPU limit is what stops a runaway compiler
 KERNEL_FILE = "kernel.casadi"
 
 
@@ -76,8 +78,8 @@ def compile_one(job: Path, cache: Path, cc: str, flags: list[str]) -> bool:
         src = generate_c(ca.Function.load(str(work / KERNEL_FILE)), key, work)
         out = src.with_suffix(".so")
         try:
-            proc = subprocess.run([cc, *flags, "-o", str(out), str(src)],
-                                  capture_output=True, text=True, timeout=COMPILE_TIMEOUT)
+            proc = subprocess.run([cc, *flags, "-o", str(out), str(src)], capture_output=True,
+                                  text=True, timeout=COMPILE_TIMEOUT, preexec_fn=_limit_cpu)
         except (OSError, subprocess.TimeoutExpired):
             return False                         # not the code's fault: no marker
         if proc.returncode != 0:
@@ -89,6 +91,14 @@ def compile_one(job: Path, cache: Path, cc: str, flags: list[str]) -> bool:
         return False
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _limit_cpu() -> None:
+    """In the compiler's child process: a CPU-time limit, not a wall-clock one (why: the worker
+    is niced, so on a loaded machine a compile of a few CPU seconds can wait minutes for CPU;
+    a wall-clock limit would drop it without a marker and the kernel would never be ready)."""
+    import resource
+    resource.setrlimit(resource.RLIMIT_CPU, (COMPILE_CPU_LIMIT, COMPILE_CPU_LIMIT + 10))
 
 
 def install_library(built: Path, lib: Path) -> None:

@@ -40,24 +40,29 @@ def test_default_jit_compiles_in_the_background_and_the_next_solve_uses_the_kern
     s = first["stats"]
     assert s["kernels_queued"] > 0 and s["kernels_native"] == 0, s
     # the detached worker outlives the solve (at low priority: on a loaded machine it may take
-    # long); its jobs are directories `jobs/<key>` until compiled into `<key>.so` (or rejected:
-    # `<key>.failed`). No wall-clock deadline: wait while a worker holds the cache's lock; jobs
-    # left with the lock free mean the worker is gone without finishing them: a failure.
+    # long); its jobs are directories `jobs/<key>` until it takes one (renamed `<key>.work`, so
+    # no longer queued) and compiles it into `<key>.so` (or rejects it: `<key>.failed`); it holds
+    # the cache's lock until the queue is empty. So the kernels are all done only when no job is
+    # queued *and* the lock is free (an empty queue alone can mean "the last one is compiling").
+    # No wall-clock deadline; jobs left with the lock free mean the worker is gone: a failure.
     from gnppdsl.nlp.jit_worker import jobs as queued, try_lock
 
     def jobs() -> list[str]:           # the worker's own view of its queue (cache/jobs/<key>)
         return [p.name for p in queued(cache)]
 
-    while jobs():
+    while True:
         lock = try_lock(cache)
-        if lock is not None:           # no worker: give a just-started one a moment, then judge
+        if lock is None:               # a worker is compiling
+            time.sleep(2)
+            continue
+        lock.close()
+        if not jobs():
+            break
+        time.sleep(5)                  # jobs and no worker: give a just-started one a moment
+        lock = try_lock(cache)
+        if lock is not None:
             lock.close()
-            time.sleep(5)
-            lock = try_lock(cache)
-            if lock is not None:
-                lock.close()
-                assert not jobs(), f"jobs left without a worker: {jobs()}"
-        time.sleep(2)
+            assert not jobs(), f"jobs left without a worker: {jobs()}"
     libs, failed = list(cache.glob("*.so")), list(cache.glob("*.failed"))
     assert len(libs) + len(failed) == s["kernels_queued"] and not failed, [p.read_text() for p in failed]
     second = _solve(tmp_path, "b.json", env)
