@@ -147,6 +147,32 @@ def test_time_of_a_solve_stopped_inside_a_run_counts_in_solve_time(monkeypatch):
     assert solver.solve_time == 7.0
 
 
+def test_time_of_a_logic_search_stopped_by_the_alarm_counts_in_logic_time(monkeypatch):
+    """A planner search cut off by the run's alarm or a signal (`interrupt.Interrupted`, raised
+    inside the search) still adds its time to Stats.logic_time. A fake clock: 11 s."""
+    import time
+
+    from gnppdsl import interrupt
+    from gnppdsl.solve.run import Run
+
+    c = compiled("p1_one_block")
+    run = Run(c, SolveOptions.from_settings(c.problem.settings), None)
+    before = run.stats.logic_time
+    clock = [5000.0]
+    monkeypatch.setattr(time, "perf_counter", lambda: clock[0])
+
+    def search_cut_off(*args, **kwargs):
+        clock[0] += 11.0
+        raise interrupt.Interrupted("time_limit")
+
+    monkeypatch.setattr(run.planner, "shortest_plan", search_cut_off)
+    monkeypatch.setattr(run.planner, "next_plan", search_cut_off)
+    for enumerate_ in (False, True):
+        with pytest.raises(interrupt.Interrupted):
+            run.next_plan(enumerate_)
+    assert run.stats.logic_time - before == 22.0
+
+
 @pytest.mark.parametrize("order", ["full_first", "relaxed_first"])
 def test_orders_agree_and_are_checked_independently(order):
     c = compiled("p3_occupied")
