@@ -35,6 +35,7 @@ initialised with `initWithPath` (the same straight line gnpp starts from).
 
     python benchmarks/bench_komo.py [--seeds 20] [--no-e2e] [--only gnpp|komo] [--unshared]
         [--against DIR]   # DIR: another gnppdsl tree, e.g. `git archive main | tar -x -C DIR`
+        [--no-kinematic-curvature]   # this tree: FK rows linearised in ipopt's Hessian
 """
 from __future__ import annotations
 
@@ -122,9 +123,14 @@ class Gnpp:
         compiler = c.body_compiler(self.jit)
         s = c.problem.settings
 
+        # the Hessian model of the domain's solver block, as `gnpp solve` runs it (a tree that
+        # does not know a setting keeps its SolverOptions default)
+        curvature = {k: getattr(s, k) for k in ("distance_curvature", "kinematic_curvature")
+                     if s is not None and hasattr(s, k) and k in SolverOptions.__dataclass_fields__}
+
         def solver() -> FeasibilitySolver:
             kw = {"tolerance": s.tolerance if s and s.tolerance else 1e-6, "restarts": 0,
-                  "distance_curvature": False, **self.solver_options}
+                  **curvature, **self.solver_options}
             opts = SolverOptions(**kw)
             return FeasibilitySolver(c.geometry, opts, compiler=compiler)
 
@@ -299,6 +305,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--against", type=Path, default=None, metavar="DIR",
                     help="also gnpp from the gnppdsl source tree DIR (e.g. main before a change), "
                          "NLPs in a worker process and end to end, alternating with this tree")
+    ap.add_argument("--no-kinematic-curvature", action="store_true",
+                    help="this tree's gnpp linearises the forward-kinematics rows in ipopt's Hessian "
+                         "(SolverOptions.kinematic_curvature off, `gnpp solve --no-kinematic-curvature`; "
+                         "not the Lab's setting); --against and --unshared keep the domain's")
     ap.add_argument("--komo-process", type=int, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -333,8 +343,11 @@ def main(argv: list[str] | None = None) -> int:
           f"Functions built in the unmeasured warm-up; gnppdsl bytecode "
           f"{'cached' if fresh else 'NOT cached (each gnpp process compiles its sources: make setup)'}")
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    if args.no_kinematic_curvature:
+        print("gnpp (this tree): forward-kinematics rows linearised in ipopt's Hessian (--no-kinematic-curvature)")
     try:
-        engines = {"gnpp": Gnpp(), "gnpp-unshared": Gnpp({"shared_assembly": False})}
+        mine = {"kinematic_curvature": False} if args.no_kinematic_curvature else {}
+        engines = {"gnpp": Gnpp(mine), "gnpp-unshared": Gnpp({"shared_assembly": False})}
         if "gnpp-against" in sides:
             engines["gnpp-against"] = GnppWorker(args.against.resolve())
             print(f"gnpp-against: gnppdsl from {args.against.resolve()}")
@@ -347,6 +360,8 @@ def main(argv: list[str] | None = None) -> int:
             if s.startswith("gnpp"):
                 cmd = [sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB / "domain.pntc"),
                        str(problem), "--quiet", "--no-jit", "--json", str(problem.parent / "out.json")]
+                if s == "gnpp" and args.no_kinematic_curvature:
+                    cmd.append("--no-kinematic-curvature")
                 tree = args.against.resolve() if s == "gnpp-against" else ROOT
                 r["e2e"], _ = child_cpu(cmd, scratch, dict(env, PYTHONPATH=str(tree)))
                 res = json.loads((problem.parent / "out.json").read_text())

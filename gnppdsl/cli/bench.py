@@ -250,7 +250,8 @@ def run(args: argparse.Namespace) -> int:
     files = find_problems(args.paths)
     settings = RunSettings(time_limit=args.time_limit, max_horizon=args.max_horizon, order=args.order,
                            jit=bool(args.jit) if args.jit is not None else False,
-                           distance_curvature=args.distance_curvature, planner=args.planner,
+                           distance_curvature=args.distance_curvature,
+                           kinematic_curvature=args.kinematic_curvature, planner=args.planner,
                            anytime=args.anytime, run_timeout=args.run_timeout, memory_mb=args.memory_limit)
     instances = range(args.seed, args.seed + args.instances) if args.instances else (None,)
     cells = list(grid(files, [s.label for s in specs], args.seeds, instances))

@@ -99,7 +99,8 @@ def _run(args: argparse.Namespace, start: float) -> int:
                 compiled.problem.settings,
                 algorithm=args.algorithm, switches=args.switches, time_limit=args.time_limit,
                 seed=args.seed, max_horizon=args.max_horizon, tolerance=args.tolerance, database=args.db,
-                order=args.order, jit=args.jit, distance_curvature=args.distance_curvature, planner=args.planner,
+                order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
+                kinematic_curvature=args.kinematic_curvature, planner=args.planner,
                 active_set=args.active_set, optimise=args.optimise, anytime=args.anytime,
             )
             limit = options.time_limit

@@ -30,6 +30,10 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "(--no-distance-curvature: they enter linearised, cheaper iterations on "
                              "robot domains). Default: the problem's solver setting "
                              "`distance_curvature`, else on")
+    parser.add_argument("--kinematic-curvature", action=argparse.BooleanOptionalAction, default=None,
+                        help="ipopt's Hessian includes the second derivatives of forward-kinematics "
+                             "rows (--no-kinematic-curvature: they enter linearised, Gauss-Newton-like "
+                             "steps). Default: the problem's solver setting `kinematic_curvature`, else on")
 
 
 def add_active_set_argument(parser: argparse.ArgumentParser, default: bool | None = None) -> None:

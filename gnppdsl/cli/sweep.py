@@ -53,6 +53,7 @@ class RunSettings:
     order: str | None = None
     jit: bool = False
     distance_curvature: bool | None = None
+    kinematic_curvature: bool | None = None
     planner: str | None = None            # logic mode (None: the problem's setting, else auto)
     anytime: float | None = None          # seconds of the anytime phase (`--anytime`)
     run_timeout: float | None = None      # wall-clock cap of an isolated run (None: derived)
@@ -206,7 +207,7 @@ def solve_cell(cell: Cell, settings: RunSettings, compiled=None, progress=None) 
             compiled.problem.settings, algorithm=spec.algorithm, switches=spec.switches,
             time_limit=settings.time_limit, seed=cell.seed, max_horizon=settings.max_horizon,
             order=settings.order, jit=settings.jit, distance_curvature=settings.distance_curvature,
-            planner=settings.planner, anytime=settings.anytime,
+            kinematic_curvature=settings.kinematic_curvature, planner=settings.planner, anytime=settings.anytime,
         )
         # every run compiles its own templates: runs share nothing, so no algorithm or seed is
         # timed with the templates an earlier one compiled

@@ -471,6 +471,9 @@ class SolverSettings:
                 ipopt's Hessian of the Lagrangian includes the second derivatives of the rows that
                 query signed distances (`sdist`, `sdist2`); false: those rows enter linearised, as
                 in SQP trajectory optimisers (see `gnppdsl.nlp.feasibility.SolverOptions`)
+    kinematic_curvature
+                ... and of the rows that use forward kinematics (`fk`); false: those enter
+                linearised too (Gauss-Newton-like steps, as KOMO takes)
     optimise    minimise the domain's `minimize` terms from the first feasible solution (true)
     anytime     seconds to look for cheaper logical plans after the first solution (0: off;
                 `gnppdsl.solve.anytime`)
@@ -489,6 +492,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
+    kinematic_curvature: bool = True
     planner: str = "auto"
     optimise: bool = True
     anytime: float = 0.0
@@ -501,7 +505,8 @@ class SolverSettings:
 SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
-    "order": str, "jit": bool, "distance_curvature": bool, "planner": str, "optimise": bool,
+    "order": str, "jit": bool, "distance_curvature": bool,
+    "kinematic_curvature": bool, "planner": str, "optimise": bool,
     "anytime": float,
 }
 

@@ -68,6 +68,9 @@ class SolverOptions:
     distance_curvature: bool = True   # ipopt's exact Hessian includes the second derivatives
                                    # of rows querying signed distances; False: they enter the
                                    # Hessian linearised (`_hessian_function` says why)
+    kinematic_curvature: bool = True  # ... and of rows using forward kinematics (`fk`); False:
+                                   # they enter linearised too (Gauss-Newton-like steps, as
+                                   # KOMO takes; `_hessian_function`)
     assembly: str = "auto"         # "SX" | "MX" | "auto" (MX when geometry primitives appear)
     cache_size: int = 512          # assembled NLPs kept (LRU) per FeasibilitySolver
     polish: bool = True            # re-solve an infeasible verdict with rho * 1e-4 from x*
@@ -453,7 +456,8 @@ class FeasibilitySolver:
         `max_wall_time`: see `_wall_time_holds`."""
         o = self.options
         opts = {k: v for k, v in o.nlpsol_options().items() if k != "ipopt.max_wall_time"}
-        return (use_mx, o.plugin, o.hessian, o.distance_curvature, o.early_stop, o.assembly,
+        return (use_mx, o.plugin, o.hessian, o.distance_curvature, o.kinematic_curvature,
+                o.early_stop, o.assembly,
                 repr(sorted((k, repr(v)) for k, v in opts.items())))
 
     def _wall_time_holds(self, shared: _Assembled) -> bool:
@@ -577,7 +581,17 @@ class FeasibilitySolver:
         26 of 64 ms per iteration) and the least informative part of the model, the second
         derivative of a piecewise-smooth distance through a local contact model. The verdict
         is untouched: only ipopt's steps change, feasibility is decided on the real rows.
-        Measured with `benchmarks/bench_lab.py` (examples/README.md)."""
+        Measured with `benchmarks/bench_lab.py` (examples/README.md).
+
+        With `kinematic_curvature` off, templates that use forward kinematics (`fk`: grasps,
+        kinematic switches, reach) are left out as well; what stays is the pull's diagonal, the
+        unit quaternions and the templates without geometry primitives. Why: on the keyframe
+        NLP of `benchmarks/bench_komo.py` (42 variables, 141 rows) the Hessians of
+        `panda.grasp` and `kin_switch_rel` (37k and 2 x 10k SX instructions) were 10-12 of
+        75-86 ms per solve, and their curvature (second derivatives of FK chains weighted by
+        multipliers) made the Lagrangian's Hessian indefinite: ipopt corrected the inertia in
+        most iterations, each correction one more MUMPS factorisation. Without it: mean 32.9
+        -> 28.8 iterations over 8 seeds, the same verdicts."""
         z = ca.MX.sym("x", n_z)
         pp = ca.MX.sym("p", n + n_par + 1)
         lam_f = ca.MX.sym("lam_f")
@@ -587,6 +601,8 @@ class FeasibilitySolver:
         parts, entries, base = [], [], 0       # entries: (row a, col b, index into parts)
         for cb, k, stacked, p0, r0 in layout:
             if not self.options.distance_curvature and DISTANCE_PRIMITIVES & cb.primitives:
+                continue
+            if not self.options.kinematic_curvature and "fk" in cb.primitives:
                 continue
             hf = self.compiler.hessian(cb)
             sp = hf.sparsity_out(0)

@@ -47,6 +47,7 @@ class SolveOptions:
                                      # compiled now, False: never (`jit.mode`)
     distance_curvature: bool = True  # ipopt's Hessian includes the curvature of signed-distance rows
                                      # (`SolverOptions.distance_curvature`)
+    kinematic_curvature: bool = True  # ... and of forward-kinematics rows (`SolverOptions.kinematic_curvature`)
     planner: str = "auto"            # logic mode (`gnppdsl.logic.modes`): auto | sequential | fd
     lazy_search: bool = True         # gnpp: Alg. 1's search solves each small subgraph from one
                                      # start, only the conflict gets the restarts (`FeasibilityCheck.confirm`);
@@ -92,7 +93,7 @@ class SolveOptions:
         if settings is not None:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
-                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "planner",
+                         "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "kinematic_curvature", "planner",
                          "optimise", "anytime"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)

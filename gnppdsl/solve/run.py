@@ -94,7 +94,8 @@ class Run(ReachabilityCosts):
         kw = {} if self.options.restarts is None else {"restarts": self.options.restarts}
         opts = SolverOptions(tolerance=self.options.tolerance, max_iter=self.options.max_iter,
                              plugin=self.options.nlp, time_limit=max(0.05, self.remaining()),
-                             distance_curvature=self.options.distance_curvature, **kw)
+                             distance_curvature=self.options.distance_curvature,
+                             kinematic_curvature=self.options.kinematic_curvature, **kw)
         solver = deadline_solver(FeasibilitySolver)(self.compiled.geometry, opts, compiler=self.compiler)
         solver.deadline = self.deadline
         self.solvers.append(solver)
