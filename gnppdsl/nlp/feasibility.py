@@ -729,12 +729,19 @@ class FeasibilitySolver:
         keyframes started on the straight line between them, that is all the work: measured on
         `bench_komo.py`'s path NLPs (start violation <= 5e-4) 4-5 iterations -> 1 with the same
         verdicts. From a far start (a keyframe NLP from the factory's guess, violation ~1) the
-        small push costs iterations (32 -> 36-43), so that start keeps the default solver."""
+        small push costs iterations (32 -> 36-43), so that start keeps the default solver.
+
+        Without ipopt's gradient-based NLP scaling, too: it evaluates the constraint Jacobian
+        and the objective gradient once more at the start before the first iteration, one of
+        the 2-3 Jacobian evaluations (2.3 ms each) of a path NLP that takes 0-1 iterations, and
+        scales nothing unless a gradient exceeds 100 (on those path NLPs the iterations were
+        the same without it). The far-start solver keeps it (1 of ~35 evaluations there)."""
         a = a.root or a
         if a.near is None and a.spec and a.spec[1] == "ipopt":
             name, plugin, nlp, opts = a.spec
             a.near = ca.nlpsol(f"{name}_near", plugin, nlp,
-                               {**opts, "ipopt.bound_push": 1e-4, "ipopt.bound_frac": 1e-4})
+                               {**opts, "ipopt.bound_push": 1e-4, "ipopt.bound_frac": 1e-4,
+                                "ipopt.nlp_scaling_method": "none"})
         return a.near
 
     def _run(self, a: _Assembled, x0: np.ndarray, rho: float, warm: _Multipliers | None = None
