@@ -1,4 +1,6 @@
 """Appendix B of paper 000: forbid a sequence of partial states by a SAS+ -> SAS+ compilation.
+(`forbid_transition`: an exact, cheaper form for conflicts of two partial states; `forbid_plan`:
+a blocked plan)
 
 Why: with the conflicts compiled into the task itself, any SAS+ planner (Fast Downward on the
 written `.sas`) plans under them; the tests use this as an independent oracle for the ASP
