@@ -55,8 +55,10 @@ class ReachabilityCosts:
         from gnppdsl.compile.costs import ground_travel_costs, uses_travel
 
         problem = self.compiled.problem
+        # a Compiled built around a hand-made task (tests' toy problems) has no IR actions
+        actions = getattr(getattr(problem, "domain", None), "actions", None) or {}
         if not any(a.cost_expr is not None and uses_travel(a.cost_expr, ("travel",))
-                   for a in problem.domain.actions.values()):
+                   for a in actions.values()):
             return task
         from gnppdsl.reach.integration import target_position
 
