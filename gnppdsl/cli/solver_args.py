@@ -49,7 +49,8 @@ def add_active_set_argument(parser: argparse.ArgumentParser, default: bool | Non
 def add_planner_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--planner", choices=SOLVER_PLANNERS, default=None,
                         help="logic mode: auto (clingo's shortest plans while cheap, Fast Downward once "
-                             "a call's proofs of shorter horizons cost more than 2 s), sequential (clingo, "
+                             "a call's proofs of shorter horizons cost more than 2 s, then both in turns of "
+                             "doubling length), sequential (clingo, "
                              "shortest plans, exact N0), fd (Fast Downward, greedy search with FF on the task with the "
                              "conflicts compiled in: short plans, not proven shortest). Default: the "
                              "problem's solver setting `planner`, else auto")

@@ -12,6 +12,13 @@ before any NLP is solved, so a cost must be known per ground action; what depend
 belongs in a template's `minimize` statement (the optimisation phase). Each such use is a
 located error of `gnpp check` (kind `cost`) naming what the cost may use instead.
 
+The reachability graph's travel is a cost too: `travel(r, a, b)`, the path cost (Eq. 3 of paper
+002) of robot r's end effector from the target of a to the target of b, and `travel_lb(r, a, b)`,
+its straight-line lower bound from the scene. Both take three objects and are numbers; only a
+cost may call them (`Scope.allow_travel`). What they need of the problem (a 3-D scene, a
+`reachability` block for the ground robot, targets in the scene) is checked when the costs are
+grounded (`gnppdsl.compile.costs`), where the ground robot is known.
+
 Checked after the continuous declarations, so that `cost norm(q(r))` is reported as a use of a
 continuous variable rather than as an unknown function.
 """
@@ -46,6 +53,7 @@ def resolve_action_cost(dom, action: M.Action, d: ast.ActionDecl) -> M.Action:
     sc = dom.scope(params={p.name: (Param(p.name), OBJ(p.types)) for p in action.params},
                    allow_prime=False,
                    prime_context="in an action cost (a cost is a number per ground action)")
+    sc.allow_travel = True
     # `pose0(o)` is the object's world pose in the scene: of the domain's pose space (SE2 or
     # SE3, known from the frames), so that `pos(pose0(o))` has a type in a cost
     pose0 = sc.scene_attrs.get("pose0")

@@ -69,6 +69,10 @@ SPACE_NAMES = ("R", "SE2", "SE3", "quat", "joints", "value", "string", "int")
 # surface functions (overloaded or monomorphic) the checker knows, for did-you-mean
 SURFACE_FUNCTIONS = ("inv", "pos", "rot", "angle", "axis", "apply", "conj", "world", "waypoints")
 
+# the reachability graph's travel in an action cost (`gnppdsl.ir.resolve_costs`): travel(r, a, b)
+# and its straight-line lower bound travel_lb(r, a, b), evaluated by `gnppdsl.compile.costs`
+TRAVEL_FUNCTIONS = ("travel", "travel_lb")
+
 
 @dataclass
 class Scope:
@@ -94,6 +98,7 @@ class Scope:
     prime_context: str = ""                                          # why a prime is refused
     iter_vars: tuple[str, ...] = ()
     used_prime: bool = False
+    allow_travel: bool = False                                       # travel(...) in an action cost
 
 
 class Checker:
@@ -366,6 +371,8 @@ class Checker:
         if name in self.s.scene_attrs:
             return self._signature_call(e, self.s.scene_attrs[name].params,
                                         self.s.scene_attrs[name].space, "scene attribute")
+        if name in TRAVEL_FUNCTIONS:
+            return self._travel(e)
         args = []
         for a in e.args:
             x, t = self.expr(a)
@@ -377,9 +384,28 @@ class Checker:
             return res
         if self.s.open_world:       # a continuous variable of a domain that uses this module
             return CVar(name, tuple(x for x, _ in args), False, span), ANY
-        cands = (list(B.BUILTINS) + list(SURFACE_FUNCTIONS) + list(self.s.continuous)
+        cands = (list(B.BUILTINS) + list(SURFACE_FUNCTIONS) + list(TRAVEL_FUNCTIONS) + list(self.s.continuous)
                  + list(self.s.state_vars) + list(self.s.primitives) + list(self.s.scene_attrs))
         return self.err(span, f"unknown function '{name}'", "unknown-name", did_you_mean(name, cands))
+
+    def _travel(self, e: ast.ECall):
+        """`travel(r, a, b)` / `travel_lb(r, a, b)`: a number (R) of three objects, only in an
+        action cost (a number per ground action, from the reachability graph of robot r)."""
+        name = e.text
+        if not self.s.allow_travel:
+            return self.err(e.span, f"{name}(...) is the reachability graph's travel, usable only in an "
+                            "action's `cost`", "cost", "in a template, the length of the motion belongs "
+                            "in a `minimize` statement")
+        if len(e.args) != 3:
+            return self.err(e.span, f"{name} takes 3 arguments (robot, from, to), got {len(e.args)}",
+                            "arity")
+        args = []
+        for a, role in zip(e.args, ("the robot", "where the end effector starts", "where it goes")):
+            x, t = self.obj(a, f"an object ({role})")
+            if t.kind == "error":
+                return x, t
+            args.append(x)
+        return Call(name, tuple(args), e.span), VAL(B.SCALAR)
 
     # ------------------------------------------------------------------ helpers
     def _object_args(self, e: ast.ECall, params, name: str):

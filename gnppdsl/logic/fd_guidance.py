@@ -42,7 +42,7 @@ def conflict_heads(task: SASTask, n_conflicts: int) -> list[int]:
     return heads
 
 
-def _condition(task: SASTask, op: Operator, seq: Sequence[PartialState], head: int) -> list[Fact] | None:
+def _condition(task: SASTask, op: Operator, seq: Sequence[PartialState], head: int | None) -> list[Fact] | None:
     """C for `op` and one conflict (facts on s, simplified by op's preconditions), or None when
     op cannot complete the conflict or its successor is not decided by s."""
     L = len(seq) - 1
@@ -64,6 +64,7 @@ def _condition(task: SASTask, op: Operator, seq: Sequence[PartialState], head: i
     if L >= 1:
         cond.extend(seq[L - 1].facts)
     if L >= 2:
+        assert head is not None, "a conflict longer than 2 is compiled by Appendix B"
         cond.append((head - 2, 1))            # b_{L-2}: variables b_0 .. b_L are consecutive
     pre = dict(op.pre)
     out: list[Fact] = []
@@ -80,11 +81,18 @@ def _condition(task: SASTask, op: Operator, seq: Sequence[PartialState], head: i
     return out
 
 
-def guide(task: SASTask, conflicts: Sequence[Sequence[PartialState]]) -> tuple[SASTask, list[int]]:
-    """`task` (conflicts already compiled in by Appendix B) with each operator split into copies
-    that avoid the conflicts' dead ends by their preconditions; and for each operator of the new
-    task the index of the operator of `task` it copies."""
-    heads = conflict_heads(task, len(conflicts))
+def guide(task: SASTask, conflicts: Sequence[Sequence[PartialState]],
+          heads: Sequence[int | None] | None = None) -> tuple[SASTask, list[int]]:
+    """`task` (conflicts already compiled in) with each operator split into copies that avoid
+    the conflicts' dead ends by their preconditions; and for each operator of the new task the
+    index of the operator of `task` it copies. `heads`: per conflict its Appendix-B variable b_L,
+    or None for one compiled by `reformulation.forbid_transition` (L = 1: the condition C above
+    is then exactly the derived precondition that forbids the transition); default: every
+    conflict by Appendix B, heads read from the task."""
+    if heads is None:
+        heads = conflict_heads(task, len(conflicts))
+    elif len(heads) != len(conflicts):
+        raise AssertionError(f"{len(heads)} heads for {len(conflicts)} conflicts")
     ops: list[Operator] = []
     origin: list[int] = []
     for i, op in enumerate(task.operators):

@@ -40,7 +40,7 @@ from gnppdsl.compile.sas import SASTask
 from gnppdsl.logic.fd_guidance import guide
 from gnppdsl.logic.learned import LearnedConstraints
 from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, Plan, PlannerStats, PlanResult, Status
-from gnppdsl.logic.reformulation import forbid_plan, forbid_sequences
+from gnppdsl.logic.reformulation import forbid_compact, forbid_plan
 from gnppdsl.logic.validate import plan_cost, validate_plan
 
 # lazy greedy search with FF's preferred operators, reopening closed states (so that "no plan
@@ -86,14 +86,18 @@ class FastDownwardPlanner(LearnedConstraints):
         self.stats = PlannerStats()
         LearnedConstraints.__init__(self)
         self._compiled: SASTask = task     # the task with every conflict and blocked plan in it
+        self._heads: list[int | None] = []  # per conflict: its Appendix-B b_L, None for a transition
         self.horizon = 0
         self.fd_cpu = 0.0                  # CPU seconds of the FD processes (children)
 
     # ---- constraints (bookkeeping in LearnedConstraints) ---------------------------------
     def _forbid_conflict(self, seqs) -> None:
-        """Appendix B per ground instance (a lifted conflict's instances each get their own
-        b_0 .. b_L: the SAS+ task has no parameters)."""
-        self._compiled = forbid_sequences(self._compiled, seqs)
+        """Each ground instance on its own (a lifted conflict's instances each get their own
+        variables: the SAS+ task has no parameters): a conflict of two partial states as a
+        forbidden transition (`forbid_transition`: derived preconditions, no conditional
+        effects), any other by Appendix B (`forbid_compact`)."""
+        self._compiled, heads = forbid_compact(self._compiled, seqs)
+        self._heads.extend(heads)
 
     def _forbid_plan(self, ops: tuple[int, ...]) -> None:
         self._compiled = forbid_plan(self._compiled, ops)
@@ -140,7 +144,7 @@ class FastDownwardPlanner(LearnedConstraints):
         t0 = time.perf_counter()
         task, origin = self._compiled, list(range(len(self._compiled.operators)))
         if self.guided and self.conflicts:
-            task, origin = guide(task, self.conflicts)     # copies name the operator they copy
+            task, origin = guide(task, self.conflicts, self._heads)     # copies name the operator they copy
         renamed = replace(task, operators=[replace(op, name=f"o{origin[k]} c{k}", cost=1)
                                            for k, op in enumerate(task.operators)])
         text = write_sas(renamed)

@@ -5,7 +5,9 @@
     fd          Fast Downward's greedy search with FF on the Appendix-B task (`FastDownwardPlanner`):
                 short plans without any proof about shorter ones
     auto        sequential while cheap, Fast Downward once a call's horizon proofs cost more
-                than `switch_after` seconds (the default; `AutoPlanner`)
+                than `switch_after` seconds (the default; `AutoPlanner`); after the switch
+                each call alternates Fast Downward and clingo in turns of doubling length
+                (FD_SLICE, 2 FD_SLICE, ...), so that neither can stall the solve
 
 Why a switch rather than a fixed choice: on the Lab problems clingo's proofs are cheap and its
 shortest plans give the GNPP loop short graph-NLPs and an exact N0, but on the scalability
@@ -37,6 +39,14 @@ from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, IncrementalPlanner, Plan,
 # horizons 0..10 in 1.9 s, horizon 11 alone 10 s).
 SWITCH_AFTER = 2.0
 WALL_FACTOR = 4.0      # ... but at most 8 s of wall time (a machine shared by many processes)
+# wall seconds of Fast Downward's first turn in a call after the switch; then clingo gets as
+# long, resuming at the horizon it reached, and each further pair of turns doubles. Why: a
+# greedy search has no progress to keep and can run for minutes where a plan exists (lab5_paper
+# before forbidden transitions: > 64 s CPU under 50 conflict instances, where clingo found a plan
+# of length 16 in 17 s), and clingo's proofs can be as slow; alternating with doubling turns
+# costs at most about 3x the faster planner's time (FD restarts each turn). FD's searches on
+# the Lab and scalability problems take 0.02-0.5 s, well inside the first turn.
+FD_SLICE = 4.0
 
 
 class AutoPlanner:
@@ -54,6 +64,8 @@ class AutoPlanner:
         self.sequential = IncrementalPlanner(task, max_horizon=max_horizon)
         self.fd: FastDownwardPlanner | None = None
         self.switched_at: int | None = None    # number of shortest_plan calls before the switch
+        self.fd_slice = FD_SLICE
+        self.turns: list[tuple[str, float]] = []   # (planner, turn length) after the switch
         self._calls = 0
         self._fd_available = downward_binary() is not None
 
@@ -116,7 +128,7 @@ class AutoPlanner:
         if minimize_cost or not self._fd_available:
             return self.sequential.shortest_plan(max_horizon, time_limit, minimize_cost)
         if self.fd is not None:
-            return self.fd.shortest_plan(max_horizon, time_limit)
+            return self._alternate(max_horizon, time_limit)
         start, cpu0 = time.perf_counter(), time.process_time()
         # the budget is CPU seconds (the same switch on a loaded machine as on an idle one), capped
         # in wall time at WALL_FACTOR x the budget and at half the call's time limit, so that Fast
@@ -140,10 +152,32 @@ class AutoPlanner:
                                      f"time limit of {time_limit:g} s reached for task {self.task.name}")
         self._switch()
         rest = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - start))
-        out = self.fd.shortest_plan(max_horizon, rest)
+        out = self._alternate(max_horizon, rest)
         out.time = time.perf_counter() - start
-        out.message += f" (Fast Downward, after {self.switch_after:g} s CPU of clingo without a plan)"
+        out.message += f" (after {self.switch_after:g} s CPU of clingo without a plan)"
         return out
+
+    def _alternate(self, max_horizon: int | None, time_limit: float | None) -> PlanResult:
+        """Fast Downward and clingo in turns of FD_SLICE, FD_SLICE, 2 FD_SLICE, 2 FD_SLICE, ...
+        wall seconds until one answers (a plan, or a proof of no plan up to the horizon) or the
+        time limit runs out. Both planners hold every conflict and blocked plan; clingo resumes
+        at the horizon it reached, Fast Downward searches again from scratch."""
+        start = time.perf_counter()
+        turn = self.fd_slice
+        res: PlanResult | None = None
+        while True:
+            for planner, name in ((self.fd, "Fast Downward"), (self.sequential, "clingo")):
+                left = None if time_limit is None else time_limit - (time.perf_counter() - start)
+                if left is not None and left <= 0:
+                    return res or PlanResult(Status.TIMEOUT, None, 0, time.perf_counter() - start,
+                                             f"time limit of {time_limit:g} s reached for task {self.task.name}")
+                res = planner.shortest_plan(max_horizon, turn if left is None else min(turn, left))
+                self.turns.append((name, turn))
+                if res.status is not Status.TIMEOUT:
+                    res.time = time.perf_counter() - start
+                    res.message += f" ({name})"
+                    return res
+            turn *= 2
 
     def _switch(self) -> None:
         fd = FastDownwardPlanner(self.task, max_horizon=self.max_horizon)

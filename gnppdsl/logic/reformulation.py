@@ -1,4 +1,6 @@
 """Appendix B of paper 000: forbid a sequence of partial states by a SAS+ -> SAS+ compilation.
+(`forbid_transition`: an exact, cheaper form for conflicts of two partial states; `forbid_plan`:
+a blocked plan)
 
 Why: with the conflicts compiled into the task itself, any SAS+ planner (Fast Downward on the
 written `.sas`) plans under them; the tests use this as an independent oracle for the ASP
@@ -94,6 +96,94 @@ def forbid_sequences(task: SASTask, seqs: Iterable[Sequence[PartialState]]) -> S
     for seq in seqs:
         task = forbid_sequence(task, seq)       # fresh variable names per conflict
     return task
+
+
+def transition_conditions(task: SASTask, seq: Sequence[PartialState]) -> list[tuple[Fact, ...] | None] | None:
+    """For a conflict <p_0, p_1> (L = 1): per operator o, the condition C_o on a state s under
+    which applying o in s completes the conflict (p_0 ⊆ s and p_1 ⊆ s[o]), or None where o never
+    does. C_o is p_0 plus the facts of p_1 that o does not set (o must set p_1's other
+    variables to p_1's values: an unconditional effect to another value means "never").
+    None for the whole conflict when s alone does not decide it: L != 1, a derived fact in p_1
+    (its successor value depends on axioms) or a conditional effect on a variable of p_1."""
+    if len(seq) != 2:
+        return None
+    p0, p1 = seq
+    if any(task.variables[v].axiom_layer >= 0 for v, _ in p1.facts):
+        return None
+    out: list[tuple[Fact, ...] | None] = []
+    for op in task.operators:
+        uncond = {e.var: e.value for e in op.effects if not e.conditions}
+        if any(e.conditions and e.var in p1.as_dict() for e in op.effects):
+            return None
+        cond: dict[int, int] = dict(p0.facts)
+        never = False
+        for v, x in p1.facts:
+            if v in uncond:
+                never |= uncond[v] != x
+            elif cond.setdefault(v, x) != x:
+                never = True
+        pre = dict(op.pre)
+        never = never or any(v in pre and pre[v] != x for v, x in cond.items())
+        out.append(None if never else tuple(sorted(cond.items())))
+    return out
+
+
+def forbid_transition(task: SASTask, seq: Sequence[PartialState], prefix: str | None = None) -> SASTask | None:
+    """A new task whose plans are those of `task` in which <p_0, p_1> never occurs, for a
+    conflict of length 2 that `transition_conditions` decides (else None: use `forbid_sequence`).
+
+    Why: a match of <p_0, p_1> at s_i, s_{i+1} is one transition, the operator a_{i+1} applied in
+    s_i, and whether it completes the conflict is a condition C_o on s_i alone
+    (`transition_conditions`). So each operator o gets the precondition d_C = 0 for a derived
+    variable d_C := C_o (one per distinct C, shared by the operators with that condition), and
+    nothing else changes: no state variables and no conditional effects. Appendix B's b_0 needs
+    1 + sum(|dom(v)| - 1) conditional effects on *every* operator to follow p_0; Fast Downward's
+    FF evaluates them all in every state (lab5_paper with 7 such conflicts: 88 effects per
+    operator, 3 ms per evaluated state, 10 s per search). The last state needs no check (no
+    transition leaves it), so the goal is unchanged. Exactly the plans of Proposition 7.1 remain.
+    """
+    seq = tuple(seq)
+    conds = transition_conditions(task, seq)
+    if conds is None:
+        return None
+    prefix = prefix or _fresh_prefix(task)
+    variables, axioms = list(task.variables), list(task.axioms)
+    heads: dict[tuple[Fact, ...], int] = {}
+    operators = []
+    for op, cond in zip(task.operators, conds):
+        if cond is not None:
+            if cond not in heads:
+                heads[cond] = len(variables)
+                layer = max(0, 1 + max((task.variables[v].axiom_layer for v, _ in cond), default=-1))
+                variables.append(SASVariable(f"{prefix}_t{len(heads) - 1}", BOOL, axiom_layer=layer))
+                axioms.append(Axiom(cond, heads[cond], 1))
+            op = replace(op, pre=tuple(op.pre) + ((heads[cond], 0),))
+        operators.append(op)
+    return SASTask(
+        variables=variables,
+        initial=tuple(task.initial) + (0,) * len(heads),
+        goal=task.goal,
+        operators=operators,
+        axioms=axioms,
+        pair_costs=dict(task.pair_costs),
+        name=task.name,
+    )
+
+
+def forbid_compact(task: SASTask, seqs: Iterable[Sequence[PartialState]]) -> tuple[SASTask, list[int | None]]:
+    """Forbid several conflicts, each by `forbid_transition` where it applies, else by Appendix B
+    (`forbid_sequence`); and per conflict the variable b_L of its Appendix-B compilation (None
+    for a transition), which `fd_guidance` needs."""
+    heads: list[int | None] = []
+    for seq in seqs:
+        compiled = forbid_transition(task, seq)
+        if compiled is None:
+            compiled = forbid_sequence(task, seq)
+            heads.append(len(compiled.variables) - 1)
+        else:
+            heads.append(None)
+        task = compiled
+    return task, heads
 
 
 def forbid_plan(task: SASTask, ops: Sequence[int], prefix: str | None = None) -> SASTask:

@@ -26,7 +26,11 @@ solver's infeasibility verdicts, confirmed by restarts as in the loop); the incu
 itself is a local optimum of its graph-NLP. Why a second clingo planner on the task without
 R-LGP's pair costs: those are heuristic end-effector travel (Eq. 3, weighted orientation and
 joint terms), not lower bounds of the objective, so under them a bound would prune plans that
-might be cheaper. Why clingo rather than Fast Downward: clasp's optimisation bound turns
+might be cheaper. Action costs that call `travel(r, a, b)` are different: they are part of
+c(plan), as numbers the solve took from the graph at its start (`rlgp.with_travel_costs`), so
+the bound and the proof are exact for them; `travel_lb(r, a, b)`, the straight-line bound from
+the scene, is <= `travel` for every action, so the compiled task's c(plan) is a lower bound of
+the solve's (docs/design.md, "Travel in action costs"). Why clingo rather than Fast Downward: clasp's optimisation bound turns
 "no cheaper plan" into an unsatisfiability proof of one solve call.
 """
 from __future__ import annotations

@@ -1,6 +1,13 @@
 """The R-LGP variant of the loop (paper 002): the reachability graphs of the problem's
 `reachability` blocks give the planner end-effector travel costs (Alg. 1's heuristicCost) and the
 trajectories a block names in `warmstart` their collision-checked paths (getWaypoints).
+
+Action costs that call `travel(r, a, b)` (`gnppdsl.compile.costs`) get the graph's value here, for
+every algorithm: the compiled task carries their lower bound `travel_lb`, and
+`with_travel_costs` builds the graph of each block whose robot such a cost names and grounds the
+costs again with `graph.travel_cost` between the two targets. The numbers are taken once, at the
+start of the solve (the lazy graph may change later queries' answers), so the plan costs the
+planners minimise, the anytime mode bounds and `Stats.plan_cost` reports are the same numbers.
 """
 from __future__ import annotations
 
@@ -29,27 +36,63 @@ class ReachabilityCosts:
     stats: Stats
     reach: dict[str, tuple[ReachabilityGraph, Reachability]]
 
+    def reachability_graph(self, block: Reachability) -> ReachabilityGraph:
+        """The graph of `block`'s robot, built once per solve."""
+        if block.robot in self.reach:
+            return self.reach[block.robot][0]
+        from gnppdsl.reach.integration import build_from_problem
+
+        t0 = time.perf_counter()
+        graph = build_from_problem(self.compiled.problem, block.name)
+        self.stats.reach_time += time.perf_counter() - t0
+        self.reach[block.robot] = (graph, block)
+        self.say(f"reachability graph '{block.name}' for {block.robot}: {graph.num_samples} samples")
+        return graph
+
+    def with_travel_costs(self, task: SASTask) -> SASTask:
+        """`task` with the graph's travel in the costs that call `travel(r, a, b)` (the compiled
+        task has their lower bound); unchanged when no action cost calls it."""
+        from gnppdsl.compile.costs import ground_travel_costs, uses_travel
+
+        problem = self.compiled.problem
+        # a Compiled built around a hand-made task (tests' toy problems) has no IR actions
+        actions = getattr(getattr(problem, "domain", None), "actions", None) or {}
+        if not any(a.cost_expr is not None and uses_travel(a.cost_expr, ("travel",))
+                   for a in actions.values()):
+            return task
+        from gnppdsl.reach.integration import target_position
+
+        blocks = {b.robot: b for b in problem.reachability}
+
+        def travel(robot: str, a: str, b: str) -> float:
+            graph = self.reachability_graph(blocks[robot])      # its build time counted there
+            t0 = time.perf_counter()
+            try:
+                return graph.travel_cost(target_position(problem.scene, a), target_position(problem.scene, b))
+            finally:
+                self.stats.reach_time += time.perf_counter() - t0
+
+        return ground_travel_costs(problem, task, travel)
+
     def with_reachability_costs(self, task: SASTask) -> SASTask:
         """Build the reachability graph of every `reachability` block (Sec. IV) and return the
         task with its end-effector travel costs as `pair_costs` (Alg. 1's heuristicCost): the
         planner then proposes, among the shortest plans, the one with the least travel."""
         from dataclasses import replace as dc_replace
 
-        from gnppdsl.reach.integration import build_from_problem, pair_costs_from_problem
+        from gnppdsl.reach.integration import pair_costs_from_problem
 
         problem = self.compiled.problem
         blocks = tuple(getattr(problem, "reachability", ()) or ())
         if not blocks:
             raise UserError(f"algorithm rlgp: problem '{self.compiled.name}' has no `reachability` block")
-        t0 = time.perf_counter()
         costs: dict = dict(task.pair_costs)
         for block in blocks:
-            graph = build_from_problem(problem, block.name)
-            self.reach[block.robot] = (graph, block)
+            graph = self.reachability_graph(block)
+            t0 = time.perf_counter()
             for pair, c in pair_costs_from_problem(problem, task, graph, block.name).items():
                 costs[pair] = costs.get(pair, 0) + c
-            self.say(f"reachability graph '{block.name}' for {block.robot}: {graph.num_samples} samples")
-        self.stats.reach_time += time.perf_counter() - t0
+            self.stats.reach_time += time.perf_counter() - t0
         return dc_replace(task, pair_costs=costs)
 
     def reach_warmstart(self, traj: VarInstance, values: dict) -> np.ndarray | None:

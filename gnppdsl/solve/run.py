@@ -49,6 +49,7 @@ class Run(ReachabilityCosts):
             watch(self.stats)
         self.conflicts: list[Conflict] = []
         self.reach = {}                   # robot -> (ReachabilityGraph, block)
+        self.task = self.with_travel_costs(self.task)     # `travel(...)` costs from the graph
         if options.algorithm == "rlgp":
             self.task = self.with_reachability_costs(self.task)
         t0, c0 = time.perf_counter(), _cpu()
@@ -272,7 +273,7 @@ class Run(ReachabilityCosts):
         worst = max(worst, bound_worst)
         self.stats.max_violation = worst
         self.stats.N = len(plan)
-        self.stats.plan_cost = sum(self.compiled.task.operators[o].cost for o in plan.operators)
+        self.stats.plan_cost = sum(self.task.operators[o].cost for o in plan.operators)
         self.stats.factors = len(factors)
         self.stats.variables = len(graph.variables)
         steps = steps_of(self.task, plan, graph, values)

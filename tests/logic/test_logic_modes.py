@@ -174,3 +174,76 @@ def test_scalability_families_first_plan(name):
         again = planner.shortest_plan(time_limit=120)
         assert again.found, again.message
         naive_check(task, again.plan.operators, [conflict])
+
+
+class _StalledFD:
+    """A Fast Downward planner whose search never answers within its turn (lab5_paper's stall
+    before forbidden transitions): every call is a time limit; it records the turns it got."""
+
+    def __init__(self, task, max_horizon=None, **_):
+        from gnppdsl.logic.planner import PlannerStats
+
+        self.task, self.stats, self.horizon, self.limits = task, PlannerStats(), 0, []
+        self.learned, self.blocked = [], []
+
+    def add_lifted(self, seqs):
+        self.learned.append(tuple(seqs))
+        return len(self.learned[-1])
+
+    def block_plan(self, ops):
+        self.blocked.append(tuple(getattr(ops, "operators", ops)))
+        return True
+
+    def shortest_plan(self, max_horizon=None, time_limit=None):
+        from gnppdsl.logic.planner import PlanResult, Status
+
+        self.limits.append(time_limit)
+        return PlanResult(Status.TIMEOUT, None, 0, 0.0, "stalled")
+
+
+def test_auto_alternates_so_a_stalled_fast_downward_cannot_stall_the_solve(monkeypatch):
+    """After the switch, a Fast Downward search that never answers gets one turn, then clingo
+    (holding every conflict) answers with a shortest plan; turns double while both time out,
+    and the call's time limit caps the last turn. Before the alternation the call returned
+    Fast Downward's time limit (a whole solve lost, issue 19)."""
+    from gnppdsl.compile.sas import PartialState
+    from gnppdsl.logic import modes
+    from gnppdsl.logic.planner import Status
+
+    monkeypatch.setattr(modes, "downward_binary", lambda: Path("downward"))
+    monkeypatch.setattr(modes, "FastDownwardPlanner", _StalledFD)
+    task = grid_task(3, 3, 2)
+    auto = AutoPlanner(task, max_horizon=14, switch_after=0.0)
+    first = auto.shortest_plan(time_limit=60)
+    assert auto.mode == "fd" and first.found and first.plan.shortest, first.message
+    assert auto.fd.limits == [modes.FD_SLICE] and "clingo" in first.message
+    s0, s1 = first.plan.states[0], first.plan.states[1]
+    conflict = (PartialState(tuple((v, s1[v]) for v in range(len(s1)) if s1[v] != s0[v])),)
+    assert auto.add_conflict(conflict) and auto.fd.learned[-1] == (conflict,)
+    second = auto.shortest_plan(time_limit=60)
+    optimum = naive.optimal_cost(forbid_sequences(task, [conflict]))
+    assert second.found == (optimum is not None and optimum <= 14), second.message
+    if second.found:
+        naive_check(task, second.plan.operators, [conflict])
+        assert second.plan.shortest and len(second.plan) == optimum
+
+    # both time out for a while: turns double (FD, clingo, FD, clingo, ...), the limit caps them
+    real = auto.sequential.shortest_plan
+    calls = []
+
+    def slow_clingo(max_horizon=None, time_limit=None, minimize_cost=False):
+        calls.append(time_limit)
+        if len(calls) <= 2:
+            return modes.PlanResult(Status.TIMEOUT, None, 0, 0.0, "slow")
+        return real(max_horizon, time_limit, minimize_cost)
+
+    monkeypatch.setattr(auto.sequential, "shortest_plan", slow_clingo)
+    auto.fd.limits.clear()
+    auto.fd_slice = 1.0
+    third = auto.shortest_plan(time_limit=1000)
+    assert third.status is second.status
+    assert auto.fd.limits == [1.0, 2.0, 4.0] and calls == [1.0, 2.0, 4.0]
+    calls.clear()
+    auto.fd.limits.clear()
+    fourth = auto.shortest_plan(time_limit=0.0)         # no time left: no turn at all
+    assert fourth.status is Status.TIMEOUT and not calls and not auto.fd.limits
