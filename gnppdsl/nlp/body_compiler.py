@@ -77,6 +77,30 @@ def scatter_sum(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, va
     return S(sp, vals)
 
 
+def scatter_parts(n_rows: int, n_cols: int, entries: list, parts: list) -> ca.MX:
+    """The sparse matrix with entry (row, col, k) of `entries` adding element k of the stacked
+    `parts` at (row, col): the Jacobian and Hessian assembly's final scatter, done by
+    `scatter_sum` (one constant sparse product)."""
+    ent = np.array(entries, dtype=np.int64).reshape(-1, 3)
+    values = ca.vertcat(*[ca.vec(q) for q in parts])
+    return scatter_sum(n_rows, n_cols, ent[:, 0], ent[:, 1], values[ent[:, 2].tolist()])
+
+
+def mapped_inputs(x: ca.MX, P: ca.MX, cb, k: int, stacked, p0: int) -> tuple[list, ca.MX]:
+    """The inputs of one template's k instances for a mapped call: each variable slot as a
+    (dim x k) matrix gathered from x, and the parameters as (n_params x k). Shared by the
+    Jacobian and Hessian assembly so both read the instances in the same layout."""
+    F = cb.function
+    slots = []
+    for j in range(F.n_in() - 1):
+        d = F.size1_in(j)
+        lo = sum(F.size1_in(i) for i in range(j))
+        idx = [stacked[t][lo + m] for t in range(k) for m in range(d)]
+        slots.append(ca.reshape(x[idx], d, k))
+    Pg = ca.reshape(P[p0:p0 + cb.n_params * k], cb.n_params, k) if cb.n_params else ca.MX(0, k)
+    return slots, Pg
+
+
 def _split(v, fn: ca.Function, n: int) -> list:
     """The first n inputs of `fn` cut from one stacked column `v`."""
     out, lo = [], 0

@@ -39,7 +39,8 @@ import numpy as np
 from gnppdsl import interrupt
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.errors import UserError
-from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody, scatter_sum
+from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody, mapped_inputs as _mapped_inputs, \
+    scatter_parts as _scatter_parts
 from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 from gnppdsl.nlp import shape_cache
@@ -583,15 +584,9 @@ class FeasibilitySolver:
         is untouched: only ipopt's steps change, feasibility is decided on the real rows.
         Measured with `benchmarks/bench_lab.py` (examples/README.md).
 
-        With `kinematic_curvature` off, templates that use forward kinematics (`fk`: grasps,
-        kinematic switches, reach) are left out as well; what stays is the pull's diagonal, the
-        unit quaternions and the templates without geometry primitives. Why: on the keyframe
-        NLP of `benchmarks/bench_komo.py` (42 variables, 141 rows) the Hessians of
-        `panda.grasp` and `kin_switch_rel` (37k and 2 x 10k SX instructions) were 10-12 of
-        75-86 ms per solve, and their curvature (second derivatives of FK chains weighted by
-        multipliers) made the Lagrangian's Hessian indefinite: ipopt corrected the inertia in
-        most iterations, each correction one more MUMPS factorisation. Without it: mean 32.9
-        -> 28.8 iterations over 8 seeds, the same verdicts."""
+        With `kinematic_curvature` off, templates that use forward kinematics (`fk`) are left
+        out as well (KOMO's Gauss-Newton model; measurements and why it is not the Lab's
+        setting in docs/design.md, "Linearised kinematics")."""
         z = ca.MX.sym("x", n_z)
         pp = ca.MX.sym("p", n + n_par + 1)
         lam_f = ca.MX.sym("lam_f")
@@ -730,12 +725,8 @@ class FeasibilitySolver:
         `bench_komo.py`'s path NLPs (start violation <= 5e-4) 4-5 iterations -> 1 with the same
         verdicts. From a far start (a keyframe NLP from the factory's guess, violation ~1) the
         small push costs iterations (32 -> 36-43), so that start keeps the default solver.
-
-        Without ipopt's gradient-based NLP scaling, too: it evaluates the constraint Jacobian
-        and the objective gradient once more at the start before the first iteration, one of
-        the 2-3 Jacobian evaluations (2.3 ms each) of a path NLP that takes 0-1 iterations, and
-        scales nothing unless a gradient exceeds 100 (on those path NLPs the iterations were
-        the same without it). The far-start solver keeps it (1 of ~35 evaluations there)."""
+        No gradient-based NLP scaling either: its extra Jacobian evaluation at the start was 1
+        of 2-3 (2.3 ms each) in those path NLPs, and it scaled nothing there (no gradient > 100)."""
         a = a.root or a
         if a.near is None and a.spec and a.spec[1] == "ipopt":
             name, plugin, nlp, opts = a.spec
@@ -891,27 +882,3 @@ def solve_feasibility(graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarr
     if solver is None:
         solver = FeasibilitySolver(geometry, SolverOptions(tolerance=tolerance, **options))
     return solver.solve(graph, warm_start=warm_start, seed=seed)
-
-
-def _scatter_parts(n_rows: int, n_cols: int, entries: list, parts: list) -> ca.MX:
-    """The sparse matrix with entry (row, col, k) of `entries` adding element k of the stacked
-    `parts` at (row, col): the Jacobian and Hessian assembly's final scatter, done by
-    `body_compiler.scatter_sum` (one constant sparse product)."""
-    ent = np.array(entries, dtype=np.int64).reshape(-1, 3)
-    values = ca.vertcat(*[ca.vec(q) for q in parts])
-    return scatter_sum(n_rows, n_cols, ent[:, 0], ent[:, 1], values[ent[:, 2].tolist()])
-
-
-def _mapped_inputs(x: ca.MX, P: ca.MX, cb, k: int, stacked, p0: int) -> tuple[list, ca.MX]:
-    """The inputs of one template's k instances for a mapped call: each variable slot as a
-    (dim x k) matrix gathered from x, and the parameters as (n_params x k). Shared by the
-    Jacobian and Hessian assembly so both read the instances in the same layout."""
-    F = cb.function
-    slots = []
-    for j in range(F.n_in() - 1):
-        d = F.size1_in(j)
-        lo = sum(F.size1_in(i) for i in range(j))
-        idx = [stacked[t][lo + m] for t in range(k) for m in range(d)]
-        slots.append(ca.reshape(x[idx], d, k))
-    Pg = ca.reshape(P[p0:p0 + cb.n_params * k], cb.n_params, k) if cb.n_params else ca.MX(0, k)
-    return slots, Pg
