@@ -32,6 +32,9 @@ install liblapack3 libglut3.12`). Without it the script prints so and exits 0. r
 `z.log.global` into the working directory: KOMO runs in a scratch directory.
 `KOMO.initWithWaypoints` (and so the helper's `sub_motion`) segfaults in 0.4.2; the motions are
 initialised with `initWithPath` (the same straight line gnpp starts from).
+`--against`: the worker-process side measured ~5 % faster than this process's in an A/A run
+(the same tree on both sides, 12 seeds: keyframe ratio 1.05, path 1.04); read ratios near 1
+with that in mind.
 
     python benchmarks/bench_komo.py [--seeds 20] [--no-e2e] [--only gnpp|komo] [--unshared]
         [--against DIR]   # DIR: another gnppdsl tree, e.g. `git archive main | tar -x -C DIR`
