@@ -20,12 +20,13 @@ from __future__ import annotations
 import json
 import sqlite3
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Iterator
 
 from gnppdsl.compile.factors import FactorInstance
-from gnppdsl.conflicts.semantic import SemanticGraph, contains, isomorphic, monomorphism, semantic_graph
+from gnppdsl.conflicts.semantic import MATCH_STATS, SemanticGraph, contains, isomorphic, monomorphism, semantic_graph
 from gnppdsl.errors import UserError
 
 SCHEMA_VERSION = 1
@@ -136,6 +137,8 @@ class DatabaseStats:
     infeasible_hits: int = 0     # NLPs skipped because they contain a known infeasible subgraph
     stored: int = 0              # new records this session
     loaded: int = 0              # records read from the file at open
+    match_time: float = 0.0      # seconds matching graphs in lookup / add (subgraph monomorphisms)
+    budget_exceeded: int = 0     # matches that gave up at `semantic.MATCH_BUDGET` (answered "unknown")
 
 
 @dataclass
@@ -255,16 +258,27 @@ class SubgraphDatabase:
         return None
 
     def lookup(self, subgraph: Any) -> bool | None:
-        """True: known feasible; False: known infeasible; None: unknown (solve it)."""
+        """True: known feasible; False: known infeasible; None: unknown (solve it). A match that
+        exceeds its budget counts as "not contained", so it can only turn a hit into a miss."""
         sg = self.graph_of(subgraph)
         self.stats.queries += 1
-        if any(contains(sg, e.graph) for e in self.infeasible):
-            self.stats.infeasible_hits += 1
-            return False
-        if any(contains(e.graph, sg) for e in self.feasible):
-            self.stats.feasible_hits += 1
-            return True
-        return None
+        with self._timed():
+            if any(contains(sg, e.graph) for e in self.infeasible):
+                self.stats.infeasible_hits += 1
+                return False
+            if any(contains(e.graph, sg) for e in self.feasible):
+                self.stats.feasible_hits += 1
+                return True
+            return None
+
+    @contextmanager
+    def _timed(self) -> Iterator[None]:
+        t0, given_up = time.perf_counter(), MATCH_STATS.budget_exceeded
+        try:
+            yield
+        finally:
+            self.stats.match_time += time.perf_counter() - t0
+            self.stats.budget_exceeded += MATCH_STATS.budget_exceeded - given_up
 
     # ---- updates -----------------------------------------------------------------------------
     def add(self, subgraph: Any, feasible: bool, conflict: Names | None = None) -> bool:
@@ -277,7 +291,9 @@ class SubgraphDatabase:
         if sg.graph.number_of_nodes() == 0:
             return False
         entry = Entry(sg, feasible, conflict, "")
-        if not self._insert(entry):
+        with self._timed():
+            inserted = self._insert(entry)
+        if not inserted:
             return False
         entry.wl_hash = sg.wl_hash()
         self._persist(entry)

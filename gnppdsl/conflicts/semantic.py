@@ -237,20 +237,148 @@ def _edge_match(a: dict, b: dict) -> bool:
     return a["slots"] == b["slots"]
 
 
-def monomorphism(pattern: SemanticGraph, target: SemanticGraph) -> dict | None:
-    """A label-preserving subgraph monomorphism pattern -> target (as {target: pattern}), or None.
+#: expansions (VF2 candidate pairs tested) one `monomorphism` may spend before it gives up with
+#: "unknown" (None). A lookup measured on lab5_paper spent > 90 s CPU in one VF2 call; at roughly
+#: 10^5 pairs per CPU second this bounds a call to about a second. None: unlimited.
+MATCH_BUDGET: int | None = 100_000
 
-    Cheap necessary conditions first (label multiset inclusion, sizes), then networkx's VF2
-    GraphMatcher; the discriminating labels keep it in the millisecond range.
-    """
+
+@dataclass
+class MatchStats:
+    """Process-wide counters of `monomorphism` (read by the solve's statistics)."""
+
+    calls: int = 0
+    prefiltered: int = 0       # rejected by a necessary condition before VF2
+    vf2_runs: int = 0
+    expansions: int = 0        # candidate pairs VF2 tested, all calls
+    budget_exceeded: int = 0   # calls that gave up ("unknown", answered None)
+
+
+MATCH_STATS = MatchStats()
+
+
+class BudgetExceeded(Exception):
+    """A single match spent its expansion budget."""
+
+
+def _profile(sg: "SemanticGraph") -> dict:
+    """Per-graph data for the necessary conditions, computed once per graph (cached on it):
+    node -> signature class (label + the multiset of (slots, neighbour label) of its edges), the
+    classes' signatures, per-label degree sequences and the multiset of edge types."""
+    prof = sg.__dict__.get("_profile")
+    if prof is not None:
+        return prof
+    g = sg.graph
+    lab = {n: d["label"] for n, d in g.nodes(data=True)}
+    cls_of_sig: dict[tuple, int] = {}
+    node_cls: dict[Any, int] = {}
+    degrees: dict[str, list[int]] = {}
+    for n in g:
+        nb = Counter((d["slots"], lab[m]) for m, d in g.adj[n].items())
+        sig = (lab[n], tuple(sorted(nb.items())))
+        node_cls[n] = cls_of_sig.setdefault(sig, len(cls_of_sig))
+        degrees.setdefault(lab[n], []).append(len(g.adj[n]))
+    for ds in degrees.values():
+        ds.sort(reverse=True)
+    sigs = [None] * len(cls_of_sig)
+    for (label, items), i in cls_of_sig.items():
+        sigs[i] = (label, Counter(dict(items)))
+    edges = Counter(tuple(sorted((lab[u], lab[v]))) + (d["slots"],) for u, v, d in g.edges(data=True))
+    prof = {"node_cls": node_cls, "sigs": sigs, "degrees": degrees, "edges": edges}
+    sg.__dict__["_profile"] = prof
+    return prof
+
+
+def _compatible_classes(pp: dict, tp: dict) -> dict[int, frozenset[int]] | None:
+    """pattern class -> target classes a pattern vertex of it may map to (same label, the
+    target's neighbour multiset contains the pattern's: an injective, label- and slot-preserving
+    map of the neighbours needs it); None when some pattern class has no candidate."""
+    by_label: dict[str, list[int]] = {}
+    for j, (label, _) in enumerate(tp["sigs"]):
+        by_label.setdefault(label, []).append(j)
+    out: dict[int, frozenset[int]] = {}
+    for i, (label, nb) in enumerate(pp["sigs"]):
+        ok = frozenset(j for j in by_label.get(label, ()) if nb <= tp["sigs"][j][1])
+        if not ok:
+            return None
+        out[i] = ok
+    return out
+
+
+def prefilter(pattern: "SemanticGraph", target: "SemanticGraph") -> dict[int, frozenset[int]] | None:
+    """Necessary conditions for a label-preserving monomorphism pattern -> target; None rejects
+    the pair (no monomorphism exists), else the compatible classes (`_compatible_classes`).
+    Each condition follows from an injective map that preserves node labels and edges with
+    their slots: label multiset containment, per label the sorted degree sequence of the
+    pattern dominated by the target's, edge-type multiset containment, and every pattern vertex
+    having a target vertex whose labelled neighbourhood contains its own."""
     if pattern.graph.number_of_nodes() > target.graph.number_of_nodes() or pattern.n_edges > target.n_edges:
         return None
     if not pattern.labels <= target.labels:
         return None
-    gm = isomorphism.GraphMatcher(target.graph, pattern.graph, node_match=_node_match, edge_match=_edge_match)
-    for mapping in gm.subgraph_monomorphisms_iter():
-        return mapping
-    return None
+    pp, tp = _profile(pattern), _profile(target)
+    for label, ds in pp["degrees"].items():
+        dt = tp["degrees"][label]
+        if any(a > b for a, b in zip(ds, dt)):
+            return None
+    if not pp["edges"] <= tp["edges"]:
+        return None
+    return _compatible_classes(pp, tp)
+
+
+class _Matcher(isomorphism.GraphMatcher):
+    """VF2 (G1 = target, G2 = pattern) whose node test also requires compatible signature
+    classes -- a necessary condition, so it prunes without changing the search order or the
+    first monomorphism found -- and which counts tested pairs against a budget."""
+
+    def __init__(self, target: "SemanticGraph", pattern: "SemanticGraph",
+                 compat: dict[int, frozenset[int]], budget: int | None) -> None:
+        super().__init__(target.graph, pattern.graph, node_match=_node_match, edge_match=_edge_match)
+        self._tcls = _profile(target)["node_cls"]
+        self._pcls = _profile(pattern)["node_cls"]
+        self._compat = compat
+        self._budget = budget
+        self.expansions = 0
+
+    def syntactic_feasibility(self, G1_node, G2_node):  # noqa: N803 (networkx's names)
+        self.expansions += 1
+        if self._budget is not None and self.expansions > self._budget:
+            raise BudgetExceeded
+        if self._tcls[G1_node] not in self._compat[self._pcls[G2_node]]:
+            return False
+        return super().syntactic_feasibility(G1_node, G2_node)
+
+
+def monomorphism(pattern: SemanticGraph, target: SemanticGraph,
+                 budget: int | None | str = "default") -> dict | None:
+    """A label-preserving subgraph monomorphism pattern -> target (as {target: pattern}), or None.
+
+    Necessary conditions first (`prefilter`), then networkx's VF2 GraphMatcher restricted to
+    compatible vertex classes. VF2 is exponential in the worst case (weakly discriminating labels
+    on graphs of hundreds of vertices: one lab5_paper lookup ran > 90 s), so a call tests at most
+    `budget` candidate pairs (default `MATCH_BUDGET`) and then answers None, "not shown" -- sound
+    for every caller: a cache miss costs an NLP solve, a missed domination stores a redundant
+    record. Within the budget the answer is plain VF2's.
+    """
+    if budget == "default":
+        budget = MATCH_BUDGET
+    stats = MATCH_STATS
+    stats.calls += 1
+    compat = prefilter(pattern, target)
+    if compat is None:
+        stats.prefiltered += 1
+        return None
+    stats.vf2_runs += 1
+    gm = _Matcher(target, pattern, compat, budget)
+    try:
+        for mapping in gm.subgraph_monomorphisms_iter():
+            return mapping
+        return None
+    except BudgetExceeded:
+        stats.budget_exceeded += 1
+        return None
+    finally:
+        stats.expansions += gm.expansions
 
 
 def contains(target: SemanticGraph, pattern: SemanticGraph) -> bool:
