@@ -80,17 +80,44 @@ def test_new_database_is_stamped_and_reopened(tmp_path):
     SubgraphDatabase(empty).close()
 
 
-_WRITER = textwrap.dedent(
+# One process imports gnppdsl once and forks a writer per trial (a process start with the imports
+# is ~0.3 s of CPU: a third of the 100-trial test's time went into starting writers). Each writer
+# is still a process of its own with its own SQLite connection, killed with SIGKILL by the test;
+# the forking process relays what the writer printed (each line written with one os.write,
+# after the commit it reports) until the writer's end of the pipe closes, then prints "end".
+_ZYGOTE = textwrap.dedent(
     """
-    import sys
+    import os, sys, traceback
     sys.path.insert(0, {tests!r})
     from conflicts_fixture_factors import same
     from gnppdsl.conflicts.database import SubgraphDatabase
-    db = SubgraphDatabase({path!r}, scope="planar", fingerprint="f")
-    print("open", db.stats.loaded, flush=True)
-    for n in range(10**6):
-        db.add([same("t%d_%d" % ({trial}, n), 0, 0)], feasible=True)
-        print("committed", flush=True)
+
+    def write(fd, trial):
+        db = SubgraphDatabase({path!r}, scope="planar", fingerprint="f")
+        os.write(fd, b"open %d\\n" % db.stats.loaded)
+        for n in range(10**6):
+            db.add([same("t%d_%d" % (trial, n), 0, 0)], feasible=True)
+            os.write(fd, b"committed\\n")
+
+    for line in sys.stdin:
+        trial = int(line)
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:                     # the writer
+            os.close(r)
+            try:
+                write(w, trial)
+            except BaseException:
+                traceback.print_exc()
+            os._exit(1)
+        os.close(w)
+        print("pid", pid, flush=True)
+        with os.fdopen(r, "rb") as out:
+            for text in out:
+                sys.stdout.write(text.decode())
+                sys.stdout.flush()
+        os.waitpid(pid, 0)
+        print("end", flush=True)
     """
 )
 
@@ -101,23 +128,37 @@ def _kill_trials(tmp_path: Path, trials: int, seed: int = 0) -> None:
     rng = random.Random(seed)
     path = tmp_path / "db.sqlite"
     committed = 0
-    for trial in range(trials):
-        script = _WRITER.format(tests=str(Path(__file__).parent), path=str(path), trial=trial)
-        proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
-        try:
-            first = proc.stdout.readline().split()
+    script = _ZYGOTE.format(tests=str(Path(__file__).parent), path=str(path))
+    zygote = subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              text=True)
+    try:
+        for trial in range(trials):
+            zygote.stdin.write(f"{trial}\n")
+            zygote.stdin.flush()
+            pid = int(zygote.stdout.readline().split()[1])
+            first = zygote.stdout.readline().split()
             assert first[:1] == ["open"], first
             assert int(first[1]) >= committed       # nothing committed earlier was lost
             time.sleep(rng.uniform(0.0, 0.3))
-            os.kill(proc.pid, signal.SIGKILL)
-            out, _ = proc.communicate(timeout=30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-        committed = int(first[1]) + out.count("committed")
-        conn = sqlite3.connect(path)
-        assert conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
-        conn.close()
+            os.kill(pid, signal.SIGKILL)
+            lines = []
+            for line in zygote.stdout:
+                if line == "end\n":
+                    break
+                lines.append(line)
+            else:
+                raise AssertionError("the forking process ended")
+            assert set(lines) <= {"committed\n"}, lines[:3]
+            committed = int(first[1]) + len(lines)
+            conn = sqlite3.connect(path)
+            assert conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+            conn.close()
+    finally:
+        zygote.stdin.close()
+        try:
+            zygote.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            zygote.kill()
     with SubgraphDatabase(path, scope="planar", fingerprint="f") as db:
         assert db.stats.loaded >= committed
 
