@@ -111,6 +111,8 @@ class Stats:
     minimise_time: float = 0.0        # seconds in it
     db_feasible_hits: int = 0
     db_infeasible_hits: int = 0
+    db_match_time: float = 0.0        # seconds matching subgraphs in the database (`semantic.monomorphism`)
+    db_match_budget_exceeded: int = 0  # matches given up at their budget (answered as misses)
     reused_solutions: int = 0         # subgraphs shown feasible by earlier solutions (no NLP)
     reuse_time: float = 0.0           # seconds spent evaluating those
     rechecks_feasible: int = 0        # failed graphs solved on a second try from their slices' solutions
@@ -266,9 +268,11 @@ class Result:
         if s.kernels_native:
             lines.append(f"jit: {s.kernels_native} derivative kernels as compiled C ({s.kernels_compiled} "
                          f"compiled now, {s.kernel_compile_time:.1f} s; the others from the cache)")
-        if s.db_feasible_hits or s.db_infeasible_hits:
+        if s.db_feasible_hits or s.db_infeasible_hits or s.db_match_time >= 0.1:
             lines.append(f"database: {s.db_feasible_hits} feasible and {s.db_infeasible_hits} "
-                         f"infeasible hits (NLPs skipped)")
+                         f"infeasible hits (NLPs skipped), {s.db_match_time:.2f} s matching"
+                         + (f", {s.db_match_budget_exceeded} matches over budget (misses)"
+                            if s.db_match_budget_exceeded else ""))
         v = self.verification
         if v is not None:
             lines.append(f"independent verification (pinocchio + coal): {'OK' if v['ok'] else 'FAILED'}, "

@@ -207,6 +207,8 @@ class Run(ReachabilityCosts):
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.finish_stats()
         if self.db is not None:
+            self.stats.db_match_time = self.db.stats.match_time
+            self.stats.db_match_budget_exceeded = self.db.stats.budget_exceeded
             self.db.close()
         return Result(problem=self.compiled.name, domain=self.compiled.domain_name,
                       algorithm=self.options.algorithm, switches=self.options.switches,
