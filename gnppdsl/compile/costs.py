@@ -33,7 +33,7 @@ from dataclasses import replace as dc_replace
 from typing import Callable, Sequence
 
 from gnppdsl.compile.factory import SCALAR_FOLD, GraphNLPFactory
-from gnppdsl.compile.ground import Binding, error_at
+from gnppdsl.compile.ground import Binding, bindings, error_at, operator_name
 from gnppdsl.compile.sas import Operator, SASTask
 from gnppdsl.errors import UserError
 from gnppdsl.ir import model as m
@@ -123,24 +123,24 @@ def ground_costs(problem: m.Problem, task: SASTask, sources: Sequence[tuple[m.Ac
 
 def ground_travel_costs(problem: m.Problem, task: SASTask, travel: TravelFn) -> SASTask:
     """A copy of `task` whose operators with `travel(...)` in their action's cost carry the
-    graph's travel (`travel`, from the solve layer) instead of its lower bound. The operators
-    are matched to their actions and bindings by name (`pick(b1, g, s1)`), as the grounding
-    wrote them; the other operators are kept."""
-    actions = {a.name: a for a in problem.domain.actions.values()
-               if a.cost_expr is not None and uses_travel(a.cost_expr, ("travel",))}
-    if not actions:
+    graph's travel (`travel`, from the solve layer) instead of its lower bound. An operator is
+    matched to its action and binding by the name the grounding gave it (`ground.operator_name`,
+    over the same `bindings`); the other operators are kept."""
+    sources = {operator_name(a.name, a.params, b): (a, b)
+               for a in problem.domain.actions.values()
+               if a.cost_expr is not None and uses_travel(a.cost_expr, ("travel",))
+               for b in bindings(problem, a.params)}
+    if not sources:
         return task
     factory = GraphNLPFactory(problem, task)
     terms = _Travel(problem, travel)
     ops: list[Operator] = []
     for op in task.operators:
-        head, _, rest = op.name.partition("(")
-        act = actions.get(head)
-        args = [x.strip() for x in rest.rstrip(")").split(",") if x.strip()]
-        if act is None or len(args) != len(act.params):
+        source = sources.get(op.name)
+        if source is None:
             ops.append(op)
             continue
-        b = {p.name: x for p, x in zip(act.params, args)}
+        act, b = source
         ops.append(dc_replace(op, cost=_ground_cost(factory, terms, op, act, b)))
     return dc_replace(task, operators=ops)
 

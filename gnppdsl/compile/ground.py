@@ -72,6 +72,12 @@ def compare_holds(problem: m.Problem, cmp: m.Compare, binding: Binding) -> bool:
     return {"<": ia < ib, "<=": ia <= ib, ">": ia > ib, ">=": ia >= ib}[cmp.op]
 
 
+def operator_name(action: str, params: Sequence[m.TypedParam], binding: Binding) -> str:
+    """The ground operator's name, `pick(b1, g, s1)`: what the planners, plans and conflicts
+    show, and how a later pass (`costs.ground_travel_costs`) finds an operator's binding."""
+    return f"{action}({', '.join(binding[q.name] for q in params)})"
+
+
 def bindings(problem: m.Problem, params: Sequence[m.TypedParam],
              guards: Sequence[m.Compare] = ()) -> Iterator[Binding]:
     """Every assignment of objects (of the allowed types) to `params` satisfying `guards`,

@@ -34,7 +34,8 @@ from __future__ import annotations
 from itertools import product
 
 from gnppdsl.compile.costs import ground_costs
-from gnppdsl.compile.ground import FINAL, MARKER, Binding, bindings, compare_holds, error_at, term_name, var_name
+from gnppdsl.compile.ground import (FINAL, MARKER, Binding, bindings, compare_holds, error_at, operator_name,
+                                    term_name, var_name)
 from gnppdsl.compile.reachability import prune_unreachable
 from gnppdsl.compile.sas import Axiom, Effect, Fact, Operator, PartialState, SASTask, SASVariable
 from gnppdsl.errors import UserError
@@ -265,7 +266,7 @@ class _Builder:
 
     def operator(self, act: m.Action, b: Binding, marker: int | None,
                  final: int | None = None) -> Operator | None:
-        name = f"{act.name}({', '.join(b[q.name] for q in act.params)})"
+        name = operator_name(act.name, act.params, b)
         pre = self.conjunction(act.pre, b, name)
         if pre is None:
             return None
