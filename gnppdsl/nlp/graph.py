@@ -38,12 +38,15 @@ class GraphNLP:
     """A (sub)graph-NLP: networkx graph + the factor list its factor vertices point into."""
 
     def __init__(self, factors: Sequence[FactorInstance], graph: nx.Graph | None = None,
-                 name: str = "G", initial_guess: dict | None = None):
+                 name: str = "G", initial_guess: dict | None = None, restart_guess: dict | None = None):
         self.factors: tuple[FactorInstance, ...] = tuple(factors)
         self.name = name
         # Optional start values per VarInstance (e.g. scene poses, R-LGP waypoints), shared by
         # every subgraph; `solve_feasibility` uses them when no warm start is given.
         self.initial_guess: dict = initial_guess if initial_guess is not None else {}
+        # Values that replace the initial guess in the solver's restarts from it (e.g. a mobile
+        # base placed next to the object it picks: `gnppdsl.compile.placement`), shared too
+        self.restart_guess: dict = restart_guess if restart_guess is not None else {}
         if graph is None:
             graph = nx.Graph()
             for i, f in enumerate(self.factors):
@@ -65,9 +68,9 @@ class GraphNLP:
     @classmethod
     def from_factors(cls, factors: Sequence[FactorInstance],
                      variables: Iterable[VarInstance] = (), name: str = "G",
-                     initial_guess: dict | None = None) -> "GraphNLP":
+                     initial_guess: dict | None = None, restart_guess: dict | None = None) -> "GraphNLP":
         """The graph-NLP of a factory output; extra `variables` are added even if unconstrained."""
-        g = cls(factors, name=name, initial_guess=initial_guess)
+        g = cls(factors, name=name, initial_guess=initial_guess, restart_guess=restart_guess)
         for v in variables:
             if v not in g.graph:
                 g.graph.add_node(v, bipartite=0, vertex="variable", label=v.key, kind=v.kind,
@@ -86,7 +89,7 @@ class GraphNLP:
         g.add_nodes_from((n, node_data[n]) for n in keep)
         g.add_edges_from((f, v, d) for f in keep if isinstance(f, FactorRef)
                          for v, d in adj[f].items() if v in keep)
-        return GraphNLP(self.factors, g, f"{self.name}{suffix}", self.initial_guess)
+        return GraphNLP(self.factors, g, f"{self.name}{suffix}", self.initial_guess, self.restart_guess)
 
     # -- views ----------------------------------------------------------------------------
     @property

@@ -53,7 +53,8 @@ class Coverage(PlanEvaluation):
             self.say(f"  active set round {rounds}: {len(new)} pair factors "
                      f"(closest {min(f.distance for f in report.issues):+.4f} m)")
             graph = GraphNLP.from_factors(list(graph.factor_instances) + new, graph.variables,
-                                          name=graph.name, initial_guess=graph.initial_guess)
+                                          name=graph.name, initial_guess=graph.initial_guess,
+                                          restart_guess=graph.restart_guess)
             check = FeasibilityCheck(self, self.new_solver(), graph, use_db=False)
             r = check.local_solve(graph, warm=values)
             if r.feasible:

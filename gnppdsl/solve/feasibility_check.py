@@ -98,10 +98,21 @@ class FeasibilityCheck(TrajectoryPhase, Confirmation, InferredVerdicts):
                 # conflict by itself; random restarts of a 10-step Lab graph cost 100+ s.
                 # The final polish of a point far from feasible is skipped there too (`local_solve`).
                 local = {"restarts": 0, **self.far_polish(modes)} if key == self.graph.signature() else {}
+                one_start = bool(local) and self.solver.options.restarts > 0 \
+                    and modes.signature() not in self.results
                 # never lazy: g takes this verdict as its own, and g's key is not marked
                 # unconfirmed (`confirm` would pass a one-start verdict on)
                 with overridden(self.solver.options, **local), overridden(self, lazy=False, lazy_large=False):
                     r0 = self.solve(modes)
+                if one_start and not r0.feasible and r0.starts > 0:
+                    # ... but the verdict of `local`'s one start is unconfirmed: the search can
+                    # return the mode-switch graph itself (a relaxation level with its factors,
+                    # e.g. no_time_traj where no factor is tagged `time`, or its only component),
+                    # and `confirm` must then give it the restarts it skipped. Without this, a
+                    # one-start keyframe verdict became a conflict with no restart at all
+                    # (sort_random with a 74-degree object: the base stalled south of the table,
+                    # 1 cm short of a grasp that the west and north sides allow)
+                    self.unconfirmed.add(modes.signature())
                 if not r0.feasible:
                     self.results[key] = r0
                     self.derived[key] = modes.signature()

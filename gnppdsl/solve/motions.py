@@ -44,7 +44,7 @@ class GraphNLPView:
         import networkx as nx
 
         h = nx.relabel_nodes(g.graph, {v: r for v, r in replacements.items() if v in g.graph}, copy=True)
-        return type(g)(g.factors, h, g.name, g.initial_guess)
+        return type(g)(g.factors, h, g.name, g.initial_guess, g.restart_guess)
 
 
 def _fixed(v: VarInstance, value: np.ndarray) -> VarInstance:

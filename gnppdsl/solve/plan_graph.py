@@ -21,7 +21,8 @@ TRAJ = "traj"
 def plan_graph(factory: GraphNLPFactory, states: Sequence[Sequence[int]], name: str = "G") -> GraphNLP:
     """The graph-NLP of a state sequence: the factory's factors and variables, with its initial
     guess for each variable at these states (e.g. a held object's pose; see
-    `GraphNLPFactory.initial_guess`) as the start of every NLP built from it."""
+    `GraphNLPFactory.initial_guess`) as the start of every NLP built from it, and the base
+    placements of mobile robots (`gnppdsl.compile.placement`) for the solver's restarts."""
     from gnppdsl.nlp.graph import GraphNLP
 
     variables = factory.variables(states)
@@ -31,7 +32,13 @@ def plan_graph(factory: GraphNLPFactory, states: Sequence[Sequence[int]], name: 
             g = factory.initial_guess(v, states)
             if g is not None:
                 guess[v] = np.asarray(g, float)
-    return GraphNLP.from_factors(factory.factors(states), variables, name=name, initial_guess=guess)
+    restart = {}
+    if getattr(factory, "scene", None) is not None and hasattr(factory, "_relative_to"):
+        from gnppdsl.compile.placement import restart_guesses
+
+        restart = {v: np.asarray(q, float) for v, q in restart_guesses(factory, variables, states).items()}
+    return GraphNLP.from_factors(factory.factors(states), variables, name=name, initial_guess=guess,
+                                 restart_guess=restart)
 
 
 def is_trajectory(v: VarInstance) -> bool:

@@ -1,0 +1,137 @@
+"""Base placements: the restart start of a mobile robot's configuration at a keyframe where it
+picks or puts down an object (the confirmation of a conflict, `solve.confirmation`).
+
+A robot whose scene entry has `base_joint: planar` (coordinates [x, y, theta, arm...]) starts
+every keyframe at its `home`: the base where the robot stands in s_0. The NLP of a pick then
+drives the base from there to the nearest side of the table, and when the object is barely in
+reach from that side the solve stops in a local minimum there, however the object could be
+reached from another side. The random restarts that confirm such a verdict do not help: the
+perturbed initial guess has the base at home again, the random start has it anywhere in the
+room. Measured (sort_random with random yaw, instance 0: blue1 at (-0.48, 0.22) turned by 74
+degrees, so the fingers must close along the south-north reach and the tilted grasp that makes
+up the last centimetres from the south is impossible): every start of seed 0 stopped with the
+base south of the table, 1 cm into the base clearance, and the pick became a false conflict
+("no plan"). From a base placed at arm's length on any free side of the object (west, north,
+north-west, south-west) the same subgraph solved in 30-60 iterations.
+
+`restart_guesses` gives, for the keyframe variables of such robots at a step where the robot
+picks an object still at its scene pose or releases one onto a static place, the home
+configuration with the base moved next to the target: the first point on rings of
+`RADII` metres around it whose disc of `BASE_RADIUS` stays out of every static obstacle's
+footprint and inside the robot's `base_min`/`base_max`, nearest the home base first, turned
+to face the target (the arm reaches along the base's x axis, as the Panda's home does). The
+NLP enforces the real clearances; the placement only decides the side.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Sequence
+
+if TYPE_CHECKING:  # pragma: no cover
+    from gnppdsl.compile.factors import VarInstance
+    from gnppdsl.compile.factory import GraphNLPFactory
+
+RADII = (0.55, 0.75, 0.95)      # base-to-target distances tried (metres), nearest first
+ANGLES = 16                     # points per ring
+BASE_RADIUS = 0.3               # the platform's footprint radius assumed for the free check
+
+
+def _yaw(q: Sequence[float]) -> float:
+    x, y, z, w = q
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _footprint_free(x: float, y: float, obstacles) -> bool:
+    """Is the disc of BASE_RADIUS at (x, y) outside every obstacle's footprint (a box's
+    rectangle, otherwise the circle of its half-diagonal)?"""
+    from gnppdsl.ir.instances import footprint_radius
+
+    for o in obstacles:
+        ox, oy = o.pose[0], o.pose[1]
+        size = tuple(o.shape.size or ())
+        if o.shape.kind == "box" and len(size) >= 2:
+            t = _yaw(o.pose[3:7])
+            dx, dy = x - ox, y - oy
+            lx, ly = math.cos(t) * dx + math.sin(t) * dy, -math.sin(t) * dx + math.cos(t) * dy
+            ex, ey = max(abs(lx) - size[0] / 2, 0.0), max(abs(ly) - size[1] / 2, 0.0)
+            if math.hypot(ex, ey) < BASE_RADIUS:
+                return False
+        elif math.hypot(x - ox, y - oy) < BASE_RADIUS + footprint_radius(o):
+            return False
+    return True
+
+
+def base_next_to(target: Sequence[float], home: Sequence[float], obstacles,
+                 lo: Sequence[float] | None = None, hi: Sequence[float] | None = None) -> list[float] | None:
+    """`home` ([x, y, theta, arm...]) with the base at the first free point around target's
+    (x, y) (see the module docstring), facing it; None when no ring point is free."""
+    tx, ty = float(target[0]), float(target[1])
+    hx, hy = float(home[0]), float(home[1])
+    for r in RADII:
+        points = []
+        for k in range(ANGLES):
+            a = 2 * math.pi * k / ANGLES
+            x, y = tx + r * math.cos(a), ty + r * math.sin(a)
+            if lo is not None and hi is not None and not (lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]):
+                continue
+            points.append((math.hypot(x - hx, y - hy), k, x, y))
+        for _, _, x, y in sorted(points):
+            if _footprint_free(x, y, obstacles):
+                q = [float(v) for v in home]
+                q[0], q[1], q[2] = x, y, math.atan2(ty - y, tx - x)
+                return q
+    return None
+
+
+def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance"],
+                    states: Sequence[Sequence[int]]) -> dict["VarInstance", list[float]]:
+    """The base placements of the keyframe variables among `variables` (see the module
+    docstring); empty when the scene has no robot with a planar base."""
+    scene, task = factory.scene, factory.task
+    if scene is None or getattr(scene, "dimension", 3) != 3:
+        return {}
+    mobile = {n: r for n, r in scene.robots.items()
+              if r.attributes.get("base_joint") == "planar" and len(r.home) >= 3}
+    if not mobile:
+        return {}
+    parents: dict[str, int] = {}          # object -> the SAS variable of its frame's parent
+    for v in variables:
+        if v.space in ("SE2", "SE3") and len(v.args) == 1 and v.args[0] not in parents:
+            x = factory._relative_to(v)
+            if x is not None:
+                parents[v.args[0]] = x
+    if not parents:
+        return {}
+    obstacles = [o for o in scene.static_obstacles(factory.problem.objects).values()
+                 if len(o.pose) >= 7]
+    out: dict = {}
+    for v in variables:
+        robot = v.args[0] if len(v.args) == 1 else None
+        if v.space != "joints" or v.waypoints or robot not in mobile or not 1 <= v.step < len(states):
+            continue
+        spec = mobile[robot]
+        if len(spec.home) != v.dim:
+            continue
+        target = None
+        for obj, x in parents.items():
+            names = task.variables[x].values
+            before, after = names[states[v.step - 1][x]], names[states[v.step][x]]
+            if after == robot and before != robot:          # picked at this step
+                if all(states[j][x] == task.initial[x] for j in range(v.step)):
+                    target = factory._world_guess(obj)    # still where the scene puts it
+            elif before == robot and after != robot:        # released onto `after`
+                place = scene.objects.get(after)
+                if place is not None and place.static:
+                    target = list(place.pose)
+            if target is not None:
+                break
+        if target is None:
+            continue
+        lo, hi = spec.attributes.get("base_min"), spec.attributes.get("base_max")
+        q = base_next_to(target, spec.home, obstacles, lo, hi)
+        if q is not None:
+            out[v] = q
+    return out
+
+
+__all__ = ["restart_guesses", "base_next_to", "RADII", "ANGLES", "BASE_RADIUS"]
