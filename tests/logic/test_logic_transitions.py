@@ -10,8 +10,6 @@ import random
 import sys
 from pathlib import Path
 
-import pytest
-
 sys.path.insert(0, str(Path(__file__).parent))
 from fd_brute import fd_agrees_with_brute_force  # noqa: E402
 from logic_brute import all_plans  # noqa: E402
