@@ -214,7 +214,7 @@ def hessian_points(a, n: int = 5, seed: int = 0):
 
 def arm_solved_worst(graph: GraphNLP, **options) -> float:
     """Solve graph on ARM_GEOM (one restart, seed 1) with the SolverOptions `options`; it must be
-    feasible; the worst violation of its factors re-evaluated by the independent numpy evaluator."""
+    feasible; the worst violation of its factors re-evaluated by gnppdsl.nlp.evaluate (numpy)."""
     from gnppdsl.nlp.evaluate import max_violation
     from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 
