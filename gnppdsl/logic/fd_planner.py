@@ -118,10 +118,12 @@ class FastDownwardPlanner(LearnedConstraints):
 
     # ---- solving -----------------------------------------------------------------------
     def shortest_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
-                      minimize_cost: bool = False) -> PlanResult:
+                      minimize_cost: bool = False, tighten_limit: float | None = None) -> PlanResult:
         """A plan of length <= the horizon under all conflicts and blocked plans, shortened by
         `_tighten` (`plan.shortest` only when proven). `minimize_cost` is refused (pair costs are not a
-        SAS+ notion; use the sequential planner)."""
+        SAS+ notion; use the sequential planner). `tighten_limit`: wall seconds for the bounded
+        searches after the first plan (default: what is left of `time_limit`; `auto` gives them
+        the solve's time left rather than its turn: they are bounded by `tighten` CPU seconds)."""
         if minimize_cost:
             raise ValueError("the Fast Downward planner does not minimise costs: use planner = sequential")
         start = time.perf_counter()
@@ -139,7 +141,7 @@ class FastDownwardPlanner(LearnedConstraints):
         plan = self._plan(ops)
         first = len(ops)
         left = None if time_limit is None else time_limit - elapsed
-        plan = self._tighten(plan, left)
+        plan = self._tighten(plan, left if tighten_limit is None else tighten_limit)
         elapsed = time.perf_counter() - start
         note = f" (Fast Downward's first: {first}; shorter by action elimination and bounded searches)" \
             if len(plan) < first else ""

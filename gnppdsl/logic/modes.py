@@ -172,9 +172,14 @@ class AutoPlanner:
                 if left is not None and left <= 0:
                     return res or PlanResult(Status.TIMEOUT, None, 0, time.perf_counter() - start,
                                              f"time limit of {time_limit:g} s reached for task {self.task.name}")
-                if planner is self.fd:        # clingo's proofs: no plan below this length
-                    self.fd.lower_bound = self.sequential._lowest
-                res = planner.shortest_plan(max_horizon, turn if left is None else min(turn, left))
+                limit = turn if left is None else min(turn, left)
+                if planner is self.fd:
+                    self.fd.lower_bound = self.sequential._lowest   # clingo's proofs: nothing shorter
+                    # the first search gets the turn; the bounded searches for shorter plans after
+                    # it are bounded by their CPU budget (TIGHTEN_CPU) and the time left
+                    res = self.fd.shortest_plan(max_horizon, limit, tighten_limit=left)
+                else:
+                    res = planner.shortest_plan(max_horizon, limit)
                 self.turns.append((name, turn))
                 if res.status is not Status.TIMEOUT:
                     res.time = time.perf_counter() - start

@@ -196,10 +196,10 @@ class _StalledFD:
         self.blocked.append(tuple(getattr(ops, "operators", ops)))
         return True
 
-    def shortest_plan(self, max_horizon=None, time_limit=None):
+    def shortest_plan(self, max_horizon=None, time_limit=None, tighten_limit=None):
         from gnppdsl.logic.planner import PlanResult, Status
 
-        self.limits.append(time_limit)
+        self.limits.append(time_limit)      # the turn (bounded searches after a plan: none here)
         return PlanResult(Status.TIMEOUT, None, 0, 0.0, "stalled")
 
 
