@@ -19,7 +19,7 @@ The search is lazy greedy best-first with that FF and its preferred operators on
 closed states reopened (see DEFAULT_SEARCH for why not the paper's `astar(ff())`): plans are
 short but not proven shortest. Greedy search takes detours (lab5_paper: 18-20 steps where 16
 exist), so each plan is shortened by action elimination (`gnppdsl.logic.elimination`) and by
-searching again below its length for `TIGHTEN_CPU` seconds (`_tighten`); `Plan.shortest` is
+searching again below its length for at most `TIGHTEN_CPU` seconds (`_tighten`); `Plan.shortest` is
 True only when such a search answered "no plan". `bound = H + 1` keeps plans within the
 horizon `H`; since FF's dead ends are safe and closed states are reopened when reached by a
 shorter path, "no plan" within the bound is a proof.
@@ -57,9 +57,14 @@ from gnppdsl.logic.validate import plan_cost, validate_plan
 _FF = "ff(axioms=approximate_negative)"
 DEFAULT_SEARCH = f"lazy_greedy([{_FF}], preferred=[{_FF}], reopen_closed=true, bound={{bound}})"
 # FD CPU seconds per `shortest_plan` call spent on searching again below the plan found
-# (`_tighten`). lab5_paper's captured searches: a bounded search found 14 below 16 in 0.12-0.26
-# s, 16 below 18 in 1.8 s; proofs that nothing shorter exists take longer (clingo: 4-17 s).
+# (`_tighten`): TIGHTEN_FACTOR x the first search's CPU, at least TIGHTEN_MIN, at most
+# TIGHTEN_CPU. lab5_paper's captured searches: the first search 0.01-0.33 s; a bounded search
+# found 14 below 16 in 0.12-0.26 s, 16 below 18 in 1.8 s; proofs that nothing shorter exists
+# take longer (clingo: 4-17 s), so most calls spend their whole budget. A flat 2 s per call cost
+# 12 s CPU of a 45 s CPU lab5_paper solve (6 plans), hence the budget follows the first search.
 TIGHTEN_CPU = 2.0
+TIGHTEN_MIN = 0.25
+TIGHTEN_FACTOR = 5.0
 # FD's exit codes (driver/returncodes.py): 11 = proven unsolvable, 12 = search ended without a
 # plan (incomplete search), 13 = unsolvable within the bound; 22-24 = out of memory / time
 _UNSOLVABLE = (11, 12, 13)
@@ -96,6 +101,7 @@ class FastDownwardPlanner(LearnedConstraints):
         self.tighten = tighten             # FD CPU seconds per call for shorter plans (`_tighten`)
         self.tightened: list[tuple[int, str, int]] = []   # per bounded search: (length, answer, new length)
         self.lower_bound = 0               # no plan is shorter (set by `auto` from clingo's proofs)
+        self._first_cpu = 0.0              # FD CPU of the call's first search (the budget follows it)
         self.binary = binary
         self.stats = PlannerStats()
         LearnedConstraints.__init__(self)
@@ -129,7 +135,9 @@ class FastDownwardPlanner(LearnedConstraints):
         start = time.perf_counter()
         H = self.max_horizon if max_horizon is None else max_horizon
         self.horizon = max(self.horizon, H)
+        cpu0 = self.fd_cpu
         status, ops = self._run(H, time_limit)
+        self._first_cpu = self.fd_cpu - cpu0
         elapsed = time.perf_counter() - start
         if status is Status.TIMEOUT:
             return PlanResult(Status.TIMEOUT, None, H, elapsed,
@@ -150,12 +158,13 @@ class FastDownwardPlanner(LearnedConstraints):
         return PlanResult(Status.FOUND, plan, len(plan), elapsed, f"found a plan of length {len(plan)}{note}")
 
     def _tighten(self, plan: Plan, time_limit: float | None) -> Plan:
-        """Shorter plans within `self.tighten` CPU seconds of FD: search again with the bound
+        """Shorter plans within a budget of FD CPU seconds (TIGHTEN_FACTOR x the first search, in
+        [TIGHTEN_MIN, `self.tighten`]; 0 turns it off): search again with the bound
         len(plan) - 1 until no plan (then the plan is proven shortest: the bounded search is
         complete, see the module docstring), the budget or `time_limit` (wall) runs out, or
         the plan reaches `self.lower_bound` (a length below which no plan exists, e.g. the
         horizon the clingo planner of `auto` has proven empty so far)."""
-        budget = self.tighten
+        budget = min(self.tighten, max(TIGHTEN_MIN, TIGHTEN_FACTOR * self._first_cpu))
         start, cpu0 = time.perf_counter(), self.fd_cpu
         while budget > 0 and len(plan) > 0:
             if len(plan) <= self.lower_bound:
