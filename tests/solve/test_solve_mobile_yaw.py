@@ -33,6 +33,7 @@ MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 XY = (-0.4834723644714709, 0.21928916744019067)      # blue1 in sort_random (random yaw), instance 0
 YAW = 1.2966967                                     # 74.3 degrees, as drawn there
 PLAN = "pick(blue1, mm, center); drop(blue1, mm, blue_tray)"
+pytestmark = pytest.mark.mobile       # a mobile scene: `.ci/run` runs the slow one with the mobile set
 
 
 def _problem(tmp_path: Path, yaw: float = YAW) -> Path:
