@@ -76,6 +76,11 @@ def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverS
             res.err(s.value.span, f"unknown planner '{v}'", "setting",
                     did_you_mean(v, M.SOLVER_PLANNERS) or "one of " + ", ".join(M.SOLVER_PLANNERS))
             continue
+        if k == "kinematic_curvature":
+            if v not in M.KINEMATIC_CURVATURE_VALUES:
+                res.err(s.value.span, f"'kinematic_curvature' must be true, false or auto, got '{v}'", "setting")
+                continue
+            v = M.KINEMATIC_CURVATURE_VALUES[v]
         if k == "switches" and (set(v) - set("trng") or len(set(v)) != len(v)):
             res.err(s.value.span, f"switches are letters among t, r, n, g (each once), got '{v}'", "setting")
             continue
