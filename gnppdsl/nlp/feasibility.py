@@ -244,7 +244,7 @@ class FeasibilitySolver:
         self.solve_time = 0.0
         self.curvature_fallbacks = 0    # solves whose linearised runs failed and got exact ones
         self.curvature_rescues = 0      # ... of which the exact Hessian made feasible
-        self._exact_pass = False        # kinematic_curvature "auto": assembling the exact pass
+        self._exact_pass = False        # assembling the exact Hessian (`exact_assembly`)
         self.trials = CurvatureTrials()  # ... how its linearised runs fared (a loop shares one)
         kc = self.options.kinematic_curvature
         if kc not in KINEMATIC_CURVATURE_MODES:
@@ -253,9 +253,9 @@ class FeasibilitySolver:
     @property
     def kinematic_exact(self) -> bool:
         """Whether the NLPs assembled now keep the forward-kinematics rows' second derivatives
-        in ipopt's Hessian: the setting, or under "auto" the pass being assembled."""
-        kc = self.options.kinematic_curvature
-        return self._exact_pass if kc == "auto" else bool(kc)
+        in ipopt's Hessian: the setting (linearised first under "auto"), unless the exact
+        one is being assembled (`exact_assembly`)."""
+        return self._exact_pass or self.options.kinematic_curvature is True
 
     # -- cost -------------------------------------------------------------------------------
     def iteration_cost(self, graph: GraphNLP) -> float:
@@ -752,9 +752,11 @@ class FeasibilitySolver:
         values = {v: x[off:off + v.dim].copy() for v, off in zip(a.variables, a.offsets)}
         return values, per, max(per.values(), default=0.0)
 
-    def _exact_twin(self, graph: GraphNLP) -> _Assembled:
-        """`graph`'s NLP with the exact Hessian (the second pass of kinematic_curvature
-        "auto"), assembled on first use and cached like the linearised one."""
+    def exact_assembly(self, graph: GraphNLP) -> _Assembled:
+        """`graph`'s NLP with the forward-kinematics rows' second derivatives in ipopt's
+        Hessian whatever `kinematic_curvature` says (the second pass of "auto"; what
+        `gnppdsl.nlp.certificate` reads its Hessian from), assembled on first use and cached
+        like the other."""
         self._exact_pass = True
         try:
             return self.assemble(graph)
@@ -776,17 +778,18 @@ class FeasibilitySolver:
         no conflict learnt from it, rests on linearised runs alone: an infeasible verdict has
         had every start with the exact Hessian, as with kinematic_curvature true. Why: the
         Gauss-Newton model is faster where it converges (bench_komo keyframe NLP) but stalls
-        on some of Lab 3's handover keyframes that the exact model solves."""
+        on some of Lab 3's handover keyframes that the exact model solves. After
+        `trial_patience` solves in a row that needed the fallback, the solvers sharing
+        `trials` (one loop) run the exact Hessian only: on the Lab's infeasible NLPs a
+        linearised run stalls after 75-185 iterations where the exact one ends in 21-56."""
         t0 = time.perf_counter()
         tol = self.options.tolerance
         if graph.n_factors == 0:
             return FeasibilityResult(True, {}, {}, 0.0, 0.0, 0.0, 0, "no factors", 0)
-        a = self.assemble(graph)
-        fallback = a.linearised and self.options.kinematic_curvature == "auto"
+        auto = self.options.kinematic_curvature == "auto"
+        a = self.exact_assembly(graph) if auto and self.trials.given_up else self.assemble(graph)
+        fallback = auto and a.linearised
         exact = None                     # the exact twin of a, once a start needed it
-        if fallback and self.trials.given_up:
-            fallback, exact = False, self._exact_twin(graph)
-            a = exact
         tried = fallback                 # this solve tries linearised runs (trial_patience)
         best = None                      # (values, per, worst, slack, status, x, lam)
         iters, starts = 0, 0
@@ -797,7 +800,7 @@ class FeasibilitySolver:
                 trial = fallback and b is a      # a linearised run of "auto": counts if feasible
                 if b is None:
                     if exact is None:
-                        exact = self._exact_twin(graph)
+                        exact = self.exact_assembly(graph)
                     b = exact
                 x, slack, it, status, lam = self._run(b, x0, self.options.regularisation)
                 iters += it
