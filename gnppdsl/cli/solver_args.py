@@ -36,7 +36,7 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "rows (alone or `true`; --no-kinematic-curvature or `false`: they enter "
                              "linearised, Gauss-Newton-like steps; `auto`: linearised first, exact "
                              "again from the same start when that does not end feasible). Default: "
-                             "the problem's solver setting `kinematic_curvature`, else on")
+                             "the problem's solver setting `kinematic_curvature`, else auto")
     parser.add_argument("--no-kinematic-curvature", dest="kinematic_curvature", action="store_const",
                         const=False, help=argparse.SUPPRESS)
 

@@ -495,7 +495,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
-    kinematic_curvature: bool | str = True
+    kinematic_curvature: bool | str = "auto"
     planner: str = "auto"
     optimise: bool = True
     anytime: float = 0.0

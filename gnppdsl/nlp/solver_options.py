@@ -44,7 +44,8 @@ class SolverOptions:
     distance_curvature: bool = True   # ipopt's exact Hessian includes the second derivatives
                                    # of rows querying signed distances; False: they enter the
                                    # Hessian linearised (`_hessian_function` says why)
-    kinematic_curvature: bool | str = True  # ... and of rows using forward kinematics (`fk`);
+    kinematic_curvature: bool | str = True  # ... and of rows using forward kinematics (`fk`;
+                                   # the solve loop's default is "auto": `SolveOptions`);
                                    # False: they enter linearised too (Gauss-Newton-like steps,
                                    # as KOMO takes; `_hessian_function`); "auto": each start is
                                    # run linearised first and, when that run does not end

@@ -47,8 +47,9 @@ class SolveOptions:
                                      # compiled now, False: never (`jit.mode`)
     distance_curvature: bool = True  # ipopt's Hessian includes the curvature of signed-distance rows
                                      # (`SolverOptions.distance_curvature`)
-    kinematic_curvature: bool | str = True  # ... and of forward-kinematics rows (True, False or
-                                     # "auto": `SolverOptions.kinematic_curvature`)
+    kinematic_curvature: bool | str = "auto"  # ... and of forward-kinematics rows (True, False or
+                                     # "auto": `SolverOptions.kinematic_curvature`; docs/design.md,
+                                     # "Linearised first, exact where that fails")
     planner: str = "auto"            # logic mode (`gnppdsl.logic.modes`): auto | sequential | fd
     lazy_search: bool = True         # gnpp: Alg. 1's search solves each small subgraph from one
                                      # start, only the conflict gets the restarts (`FeasibilityCheck.confirm`);
