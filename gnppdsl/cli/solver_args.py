@@ -38,7 +38,7 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "again from the same start when that does not end feasible). Default: "
                              "the problem's solver setting `kinematic_curvature`, else auto")
     parser.add_argument("--no-kinematic-curvature", dest="kinematic_curvature", action="store_const",
-                        const=False, help=argparse.SUPPRESS)
+                        const=False, help="= --kinematic-curvature false")
 
 
 def kinematic_curvature_mode(text: str) -> bool | str:
