@@ -57,6 +57,12 @@ def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverS
         k = s.key.value
         if not _new_known_key(res, s, M.SOLVER_FIELDS, vals, "solver"):
             continue
+        if k == "kinematic_curvature":       # true, false or auto
+            if s.value.kind not in ("name", "string") or s.value.value not in M.KINEMATIC_CURVATURE_VALUES:
+                res.err(s.value.span, "'kinematic_curvature' must be true, false or auto", "setting")
+                continue
+            vals[k] = M.KINEMATIC_CURVATURE_VALUES[s.value.value]
+            continue
         v = _setting_value(res, s, M.SOLVER_FIELDS[k])
         if v is None:
             continue
@@ -76,11 +82,6 @@ def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverS
             res.err(s.value.span, f"unknown planner '{v}'", "setting",
                     did_you_mean(v, M.SOLVER_PLANNERS) or "one of " + ", ".join(M.SOLVER_PLANNERS))
             continue
-        if k == "kinematic_curvature":
-            if v not in M.KINEMATIC_CURVATURE_VALUES:
-                res.err(s.value.span, f"'kinematic_curvature' must be true, false or auto, got '{v}'", "setting")
-                continue
-            v = M.KINEMATIC_CURVATURE_VALUES[v]
         if k == "switches" and (set(v) - set("trng") or len(set(v)) != len(v)):
             res.err(s.value.span, f"switches are letters among t, r, n, g (each once), got '{v}'", "setting")
             continue
