@@ -19,7 +19,10 @@ waypoints in one NLP) took 23 s CPU and failed in round 1 (125 pair factors, -3.
 6.4 s in round 2 (4 pair factors), half of the whole solve; the repair of round 2 took 0.9 s
 (two motions, 6 and 18 iterations). Round 1 failed the repair too (a second failing motion:
 up to MAX_JOINED_MOTIONS joined motions cost 12 s more and failed as well, hence one:
-`REPAIR_JOINED_MOTIONS`), and Algorithm 1 solved it in 10 s.
+`REPAIR_JOINED_MOTIONS`), and Algorithm 1 solved it in 10 s. Why not zero joined motions
+(tried): lab4_paper 36 -> 28 s CPU (its one join duplicates the 6 s NLP Algorithm 1 then
+solves again), but work1, whose round-1 motion misses by 1e-5 between fixed keyframes and is
+repaired by the join, 35 -> 42 s (seed 0) and 25 -> 31 s (seed 1).
 """
 from __future__ import annotations
 
