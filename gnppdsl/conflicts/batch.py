@@ -74,10 +74,12 @@ class Batcher:
     verdicts: dict = field(default_factory=dict)  # Candidate.key -> feasible (bool)
 
     def candidates(self, states: Sequence[State], factors: Sequence[FactorInstance],
-                   plan_objects: Sequence[str] = (), lifted: dict | None = None) -> Iterator[Candidate]:
+                   plan_names: Sequence[str] = (), lifted: dict | None = None) -> Iterator[Candidate]:
         """The renamed subgraphs of the conflict of `factors` (found on the plan with full states
-        `states`), in order: single renamings before pairs, renamings onto objects of the plan
-        before the others, then by name. Each with an image (`Lifter.image`) and facts; at most
+        `states` and action names `plan_names`), in order: single renamings before pairs,
+        renamings onto objects that play the renamed object's role in the plan (an argument
+        position of an action: the blocks it picks, not those it stacks onto) first, then onto
+        other objects of the plan, then the rest, each by name. Each with an image (`Lifter.image`) and facts; at most
         FACTORY_FACTOR * budget factory calls. `lifted`: object -> the objects lifting renamed
         it onto (`Lifter.renamable`); an object lifted onto every other object of its type is
         not renamed (the caller lifts each learned candidate, which covers those renamings)."""
@@ -86,13 +88,21 @@ class Batcher:
         lifted = lifted or {}
         objs = [o for o in self.lifter.objects(factors)
                 if not set(c for c in types if c != o and types[c] == types[o]) <= set(lifted.get(o, ()))]
-        in_plan = set(plan_objects)
+        roles: dict[str, set] = {}
+        for name in plan_names:
+            head, args = (name[:-1].split("(", 1) + [""])[:2] if name.endswith(")") else (name, "")
+            for i, a in enumerate(x.strip() for x in args.split(",")):
+                roles.setdefault(a, set()).add((head, i))
+
+        def rank(o: str, c: str) -> int:
+            return 0 if roles.get(o, set()) & roles.get(c, set()) else 1 if c in roles else 2
+
         choices = {o: sorted((c for c in types if c != o and types[c] == types[o]),
-                             key=lambda c: (c not in in_plan, _natural(c))) for o in objs}
+                             key=lambda c: (rank(o, c), _natural(c))) for o in objs}
         singles = [((o, c),) for o in objs for c in choices[o]]
         pairs = [((o1, c1), (o2, c2)) for o1, o2 in itertools.combinations(objs, 2)
                  for c1 in choices[o1] for c2 in choices[o2] if c1 != c2 and c1 != o2 and c2 != o1]
-        pairs.sort(key=lambda m: (sum(c not in in_plan for _, c in m), [_natural(c) for _, c in m]))
+        pairs.sort(key=lambda m: (sum(rank(o, c) for o, c in m), [_natural(c) for _, c in m]))
         calls = 0
         for mapping in itertools.chain(singles, pairs):
             if calls >= FACTORY_FACTOR * self.budget:

@@ -4,7 +4,6 @@ conflicts handed to the planner, the independent re-check of a solution and the 
 """
 from __future__ import annotations
 
-import re
 import time
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
@@ -230,10 +229,9 @@ class Run(ReachabilityCosts):
         t0 = time.perf_counter()
         stats, out, solved = self.batcher.stats, [], 0
         known = [*self.planner.conflicts, *instances]
-        names = {a for n in plan.names for a in re.split(r"[(), ]+", n) if a}
         try:
             lifted = self.lifter.renamable if self.lifter is not None else None
-            for cand in self.batcher.candidates(plan.states, sub_factors, sorted(names), lifted):
+            for cand in self.batcher.candidates(plan.states, sub_factors, list(plan.names), lifted):
                 if subsumed(cand.conflict, known):
                     continue                   # forbidden already: nothing to learn
                 feasible = self.batcher.verdicts.get(cand.key)
