@@ -49,7 +49,13 @@ def pytest_make_collect_report(collector):
     _forbid_skip(outcome.get_result())
 
 
+@pytest.hookimpl(tryfirst=True)      # before `-m` selects by the markers added here
 def pytest_collection_modifyitems(config, items):
+    # a test that reads a shared mobile solve runs where the mobile problems run (`.ci/run`:
+    # `-m "slow and mobile"` in one process, `-m "slow and not mobile"` in the other)
+    for it in items:
+        if SHARED_MOBILE & set(getattr(it, "fixturenames", ())):
+            it.add_marker(pytest.mark.mobile)
     if os.environ.get("GNPP_SLOW") == "1":
         return
     keep = [it for it in items if "slow" not in it.keywords]
@@ -67,3 +73,30 @@ os.environ.setdefault("GNPP_JIT", "0")
 # Nor do they start the background build of the native distance library (gnppdsl.geometry.native):
 # `make setup` builds it, and tests/geometry/test_geometry_native.py builds it when it is missing.
 os.environ.setdefault("GNPP_NATIVE_BUILD", "0")
+
+
+# ---- solves shared by several slow tests (tests/shared_solves.py), once per session ----------
+SHARED_MOBILE = {"pick_place_rlgp"}
+
+
+@pytest.fixture(scope="session")
+def pick_place_rlgp(tmp_path_factory):
+    """examples/mobile/pick_place.pntc by `gnpp solve --algorithm rlgp --seed 0 --time-limit 900
+    --json` (R-LGP, as examples/README.md documents): the mobile solve-and-verify test, the JSON
+    schema test and the CLI's `--algorithm rlgp` test read this one run (shared_solves.CliRun)."""
+    from shared_solves import PICK_PLACE_ARGV, run_cli_capturing
+
+    return run_cli_capturing(PICK_PLACE_ARGV, tmp_path_factory.mktemp("pick_place") / "pick_place.json")
+
+
+@pytest.fixture(scope="session")
+def lab1_kernels(tmp_path_factory):
+    """lab1's derivative kernels compiled by `gnpp solve --jit` into an empty cache, once: the
+    `--jit` test checks that run, the default-JIT test starts from a copy missing a few kernels
+    (shared_solves.KernelCacheRun). Skips without a C compiler."""
+    from gnppdsl.nlp import jit
+    from shared_solves import compile_lab1_kernels
+
+    if jit.find_compiler() is None:
+        pytest.skip("no C compiler")
+    return compile_lab1_kernels(tmp_path_factory.mktemp("lab1_kernels"))

@@ -21,8 +21,12 @@ It checks, at every keyframe and every trajectory waypoint:
   (`coal.collide` on the meshes themselves, not the hulls the solver uses; a fixed base's
   unmoving links against static bodies excepted: the arm is mounted on the table), the two
   arms' links against each other, and object pairs by signed distance (boxes), a held object with its
-  robot and the pairs of `ignore_collisions` excepted; robot self-collisions are left to the
-  project's verifier (they need the SRDF's pair filter);
+  robot and the pairs of `ignore_collisions` excepted;
+- self-collisions: each robot's link meshes against each other, the pairs pinocchio builds for
+  links on different joints (`addAllCollisionPairs`) minus those the robot's SRDF disables
+  (`removeCollisionPairs`: adjacent links and pairs that never or always touch, e.g. the fingers
+  with the hand); a robot model without an SRDF keeps only the pairs of links at least two
+  joints apart in the tree (adjacent links touch at their joint by construction);
 - goal: every `f(x) = y` fact of the problem's goal holds in the final symbolic state.
 
 Conventions read from the scene format (docs/scene.md): poses `{xyz, rpy | quat (x y z w)}`,
@@ -42,7 +46,8 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-MODELS = {"panda": ("panda_description/urdf/panda.urdf", "panda_description")}
+# model -> (URDF, SRDF or None), relative to example-robot-data's robots directory
+MODELS = {"panda": ("panda_description/urdf/panda.urdf", "panda_description/srdf/panda.srdf")}
 _FACT = re.compile(r"(\w+)\(([\w, ]+)\)\s*=\s*(\w+)")
 
 
@@ -96,6 +101,7 @@ class _Robot:
     joints: list[str]                  # the result's coordinate names, in order
     planar: bool
     spec: dict
+    self_pairs: list[tuple[int, int]] = field(default_factory=list)    # geometry indices checked against each other
 
     def q_full(self, q) -> np.ndarray:
         full = pin.neutral(self.model)
@@ -138,13 +144,30 @@ class _Robot:
 
 
 def _robot(name: str, spec: dict, joints: list[str]) -> _Robot:
-    urdf_rel, pkg = MODELS[spec["model"]]
+    urdf_rel, srdf_rel = MODELS[spec["model"]]
     root = _share()
     urdf = str(root / urdf_rel)
     model = pin.buildModelFromUrdf(urdf)
     geom = pin.buildGeomFromUrdf(model, urdf, pin.GeometryType.COLLISION, package_dirs=[str(root.parents[1])])
     return _Robot(name, model, model.createData(), geom, pin.GeometryData(geom), _pose(spec.get("base")),
-                  model.getFrameId(spec["ee"]), joints, spec.get("base_joint") == "planar", spec)
+                  model.getFrameId(spec["ee"]), joints, spec.get("base_joint") == "planar", spec,
+                  _self_pairs(model, geom, root / srdf_rel if srdf_rel else None))
+
+
+def _self_pairs(model: pin.Model, geom: pin.GeometryModel, srdf: Path | None) -> list[tuple[int, int]]:
+    """The link-mesh pairs of one robot checked against each other: pinocchio's pairs of
+    geometries on different joints, minus the SRDF's `disable_collisions` (or, without an SRDF,
+    minus the pairs whose joints are the same or parent and child)."""
+    geom.addAllCollisionPairs()
+    if srdf is not None:
+        pin.removeCollisionPairs(model, geom, str(srdf))
+        return [(cp.first, cp.second) for cp in geom.collisionPairs]
+    out = []
+    for cp in geom.collisionPairs:
+        ja, jb = geom.geometryObjects[cp.first].parentJoint, geom.geometryObjects[cp.second].parentJoint
+        if ja != jb and model.parents[ja] != jb and model.parents[jb] != ja:
+            out.append((cp.first, cp.second))
+    return out
 
 
 @dataclass
@@ -286,6 +309,12 @@ def _state(rep: Report, where: str, robots, bodies, world, qs, held, ignore, mar
                 res = coal.CollisionResult()
                 if coal.collide(go.geometry, _tf(T), b.shape, _tf(world[n]), req, res):
                     rep.failures.append(f"{where}: {r}/{go.name} collides with {n}")
+        for ga, gb in rb.self_pairs:              # the SRDF-filtered pairs of its own links
+            go_a, go_b = rb.geom.geometryObjects[ga], rb.geom.geometryObjects[gb]
+            res = coal.CollisionResult()
+            if coal.collide(go_a.geometry, _tf(rb.gdata.oMg[ga]), go_b.geometry, _tf(rb.gdata.oMg[gb]),
+                            coal.CollisionRequest(), res):
+                rep.failures.append(f"{where}: {r}/{go_a.name} collides with {r}/{go_b.name} (self-collision)")
         for r2, rb2 in robots.items():
             if r2 <= r:
                 continue

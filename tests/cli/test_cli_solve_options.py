@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 import sys
 from importlib.metadata import version
 from pathlib import Path
@@ -158,32 +157,27 @@ def test_distance_curvature_both_ways_solve_lab1_and_verify(tmp_path, flag):
     assert rep.ok and rep.keyframes == len(r["plan"]) + 1 and rep.waypoints > 0, str(rep)
 
 
-@pytest.mark.slow          # a mobile solve
-def test_algorithm_rlgp_end_to_end(tmp_path):
-    r = _solve_json(tmp_path, ROOT / "examples" / "mobile" / "sort2.pntc", "--algorithm", "rlgp")
+@pytest.mark.slow          # a mobile solve: the session's `gnpp solve pick_place --algorithm rlgp` (tests/conftest.py)
+def test_algorithm_rlgp_end_to_end(pick_place_rlgp):
+    assert pick_place_rlgp.code == 0
+    r = pick_place_rlgp.json
     assert r["solved"] and r["algorithm"] == "rlgp"
     assert r["stats"]["max_violation"] <= 1e-6
 
 
-@pytest.mark.slow          # ~30 kernels through the C compiler
-def test_jit_flag_compiles_kernels_into_the_cache(tmp_path):
-    """`--jit` in a fresh process with its own cache: kernels compiled (or loaded) as C, and a
-    second process finds them in the cache (native, none compiled again)."""
-    from gnppdsl.nlp import jit
-    if jit.find_compiler() is None:
-        pytest.skip("no C compiler")
-    env = {k: v for k, v in __import__("os").environ.items() if k != "GNPP_JIT"}
-    env.update(GNPP_JIT_CACHE=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
-    runs = []
-    for k in range(2):
-        out = tmp_path / f"r{k}.json"
-        p = subprocess.run([sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB / "lab1.pntc"), "--jit",
-                            "--json", str(out), "--quiet"], env=env, capture_output=True, text=True, timeout=600)
-        assert p.returncode == 0, p.stderr[-2000:]
-        runs.append(json.loads(out.read_text())["stats"])
-    assert runs[0]["kernels_compiled"] > 0 and runs[0]["kernels_failed"] == 0, runs[0]
-    assert runs[1]["kernels_compiled"] == 0 and runs[1]["kernels_native"] >= runs[0]["kernels_compiled"], runs[1]
-    assert any((tmp_path / "cache").rglob("*.so"))
+@pytest.mark.slow          # lab1's kernels through the C compiler (the session's lab1_kernels, tests/conftest.py)
+def test_jit_flag_compiles_kernels_into_the_cache(lab1_kernels):
+    """`--jit` in a fresh process with an empty cache: kernels compiled as C (the session's
+    compile, which tests/solve/test_solve_jit_default.py starts from), and a second process
+    finds them in the cache (native, none compiled again)."""
+    from shared_solves import jit_env, solve_lab1_child
+
+    first = lab1_kernels.first["stats"]
+    second = solve_lab1_child(lab1_kernels.cache.parent / "jit_second.json", jit_env(lab1_kernels.cache),
+                              "--jit", timeout=600)["stats"]
+    assert first["kernels_compiled"] > 0 and first["kernels_failed"] == 0, first
+    assert second["kernels_compiled"] == 0 and second["kernels_native"] >= first["kernels_compiled"], second
+    assert any(lab1_kernels.cache.rglob("*.so"))
 
 
 @pytest.mark.parametrize("argv,option", [

@@ -92,6 +92,31 @@ def test_rebuilt_check_rejects_corrupted_solutions(lab1):
         d["steps"][0]["trajectories"]["path(left_arm)"][10] = q
     assert any("waypoint 10: left_arm/" in x and "collides with table" in x for x in failures(dive))
 
+    def fold(d):                                           # the hand folded back onto link 2, within the limits
+        d["steps"][0]["trajectories"]["path(left_arm)"][5] = [0.0, -0.785, 0.0, -3.0, 0.0, 0.3, 0.785]
+    f = failures(fold)
+    assert "s0->s1 waypoint 5: left_arm/panda_link2_0 collides with left_arm/panda_hand_0 (self-collision)" in f, f
+    assert not any("outside" in x for x in f), f          # no joint limit: the self-collision alone
+
+
+def test_rebuilt_check_self_pairs_without_an_srdf():
+    """Without an SRDF the rebuilt check keeps the link pairs at least two joints apart (adjacent
+    links touch at their joint); the Panda's SRDF also removes pairs that never touch."""
+    from rebuilt_check import _robot, _self_pairs
+
+    rb = _robot("a", {"model": "panda", "ee": "panda_hand_tcp"}, [f"panda_joint{i}" for i in range(1, 8)])
+    geom = rb.geom.copy()
+    geom.removeAllCollisionPairs()
+    name = lambda pairs: {(geom.geometryObjects[a].name, geom.geometryObjects[b].name) for a, b in pairs}  # noqa: E731
+    plain, srdf = name(_self_pairs(rb.model, geom, None)), name(rb.self_pairs)
+    for pairs in (plain, srdf):
+        assert ("panda_link2_0", "panda_hand_0") in pairs and ("panda_link0_0", "panda_link5_0") in pairs
+        assert ("panda_link1_0", "panda_link2_0") not in pairs and ("panda_link7_0", "panda_hand_0") not in pairs
+        assert ("panda_leftfinger_0", "panda_leftfinger_1") not in pairs            # one link's meshes
+    assert ("panda_link0_0", "panda_link2_0") in plain and ("panda_link0_0", "panda_link2_0") not in srdf  # "Never"
+    assert ("panda_hand_0", "panda_leftfinger_0") not in plain                       # adjacent (finger joint)
+    assert srdf < plain
+
 
 def _corrupt(r, fn):
     bad = copy.deepcopy(r.steps)

@@ -10,9 +10,8 @@ import random
 import sys
 from pathlib import Path
 
-import pytest
-
 sys.path.insert(0, str(Path(__file__).parent))
+from fd_brute import fd_agrees_with_brute_force  # noqa: E402
 from logic_brute import all_plans  # noqa: E402
 
 from gnppdsl.compile.sas import PartialState  # noqa: E402
@@ -124,17 +123,9 @@ def test_guided_mixed_compilations_keep_exactly_the_plans():
 
 
 def test_fast_downward_compiles_two_state_conflicts_without_conditional_effects():
-    pytest.importorskip("up_fast_downward", reason="up-fast-downward (optional external package) is not installed")
-    from gnppdsl.logic.fd_planner import FastDownwardPlanner
-
-    found = 0
-    for task, conflicts, _ in list(cases())[::4]:
-        planner = FastDownwardPlanner(task, max_horizon=6)
-        planner.add_conflicts(conflicts)
+    def no_conditional_effects(task, planner):
         pairs = [i for i, c in enumerate(planner.conflicts) if transition_conditions(task, c) is not None]
         if pairs and len(pairs) == len(planner.conflicts) and not any(e.conditions for op in task.operators for e in op.effects):
             assert not any(e.conditions for op in planner._compiled.operators for e in op.effects)
-        res = planner.shortest_plan()        # validated against task + conflicts inside (raises)
-        assert res.found == bool(all_plans(task, 6, conflicts))
-        found += res.found
-    assert found >= 5
+
+    fd_agrees_with_brute_force(list(cases())[::4], no_conditional_effects)

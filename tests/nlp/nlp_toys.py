@@ -191,3 +191,33 @@ def arm_reach_graph() -> GraphNLP:
                      _pose7(Index(_O_SLOT, Num(0)), Index(_O_SLOT, Num(1)))), ">=", Num(0.2)),
     ], 0)
     return GraphNLP([reach, clear])
+
+
+# ---- the curvature options (`SolverOptions.distance_curvature` / `.kinematic_curvature`) on the arm
+def arm_hessian(graph: GraphNLP, z, p, lam, **options) -> np.ndarray:
+    """ipopt's Hessian of the Lagrangian of graph on ARM_GEOM (MX assembly, objective factor 1)
+    at (z, p, lam), with the SolverOptions `options` (a curvature switch)."""
+    from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+
+    s = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=0, assembly="MX", **options))
+    return s.assemble(graph).solver.get_function("nlp_hess_l")(z, p, 1.0, lam).full()
+
+
+def hessian_points(a, n: int = 5, seed: int = 0):
+    """n random (z, p, lam) of an assembled NLP `a`: z and lam normal, p the pull's reference
+    near z, a's parameters and the pull's weight."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        z = rng.normal(0.0, 0.7, a.lbx.size)
+        yield z, np.concatenate([z[:a.n_x] + 0.1, a.params, [0.01]]), rng.normal(0.0, 1.0, a.lbg.size)
+
+
+def arm_solved_worst(graph: GraphNLP, **options) -> float:
+    """Solve graph on ARM_GEOM (one restart, seed 1) with the SolverOptions `options`; it must be
+    feasible; the worst violation of its factors re-evaluated by gnppdsl.nlp.evaluate (numpy)."""
+    from gnppdsl.nlp.evaluate import max_violation
+    from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+
+    r = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=1, assembly="MX", **options)).solve(graph, seed=1)
+    assert r.feasible
+    return max_violation(graph.factor_instances, r.values, ARM_GEOM)[0]

@@ -1,44 +1,36 @@
 """The users' default JIT path (no --jit / --no-jit, no `jit` setting, GNPP_JIT unset): the
 tests' conftest turns it off for every other solve (GNPP_JIT=0), so here it runs in child
-processes with their own kernel cache. A first solve of lab1 queues its large derivative
-kernels for the background compiler and still solves; once they are built, a second solve
-loads them from the cache (native kernels) and gives the same plan. Slow (~30 kernels through
-the C compiler): GNPP_SLOW=1, as `.ci/run` sets."""
+processes with their own kernel cache. The cache starts as a copy of the session's lab1 kernels
+(tests/conftest.py lab1_kernels: compiled once by `gnpp solve --jit`, whose test is in
+tests/cli) with `MISSING` of them removed: a first solve loads the others from the cache,
+queues the missing ones for the background compiler and still solves; once they are built, a
+second solve runs every kernel natively and gives the same plan. Slow (the session's kernels
+through the C compiler): GNPP_SLOW=1, as `.ci/run` sets."""
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pytest
 
-from gnppdsl.nlp import jit
+from shared_solves import copy_cache, jit_env, solve_lab1_child
 
-ROOT = Path(__file__).resolve().parents[2]
-LAB1 = ROOT / "examples" / "lab" / "lab1.pntc"
-
-
-def _solve(tmp_path: Path, out: str, env: dict) -> dict:
-    p = subprocess.run([sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB1), "--json",
-                        str(tmp_path / out), "--quiet"], env=env, capture_output=True, text=True, timeout=900)
-    assert p.returncode == 0, p.stderr[-2000:]
-    return json.loads((tmp_path / out).read_text())
+MISSING = 3     # kernels left for the background worker (more than one: it works through a queue)
 
 
 @pytest.mark.slow
-def test_default_jit_compiles_in_the_background_and_the_next_solve_uses_the_kernels(tmp_path):
-    if jit.find_compiler() is None:
-        pytest.skip("no C compiler")
-    cache = tmp_path / "cache"
-    env = {k: v for k, v in os.environ.items() if k != "GNPP_JIT"}
-    env.update(GNPP_JIT_CACHE=str(cache), PYTHONPATH=str(ROOT))
-    first = _solve(tmp_path, "a.json", env)
+def test_default_jit_compiles_in_the_background_and_the_next_solve_uses_the_kernels(tmp_path, lab1_kernels):
+    cache = copy_cache(lab1_kernels, tmp_path / "cache")
+    libs = sorted(cache.glob("*.so"))
+    n = lab1_kernels.first["stats"]["kernels_native"]      # what a lab1 solve runs natively
+    assert len(libs) == n > MISSING, (len(libs), n)
+    removed = [lib.name for lib in libs[:MISSING]]    # names are kernel hashes: an arbitrary, fixed choice
+    for name in removed:
+        (cache / name).unlink()
+    env = jit_env(cache)
+    first = solve_lab1_child(tmp_path / "a.json", env)
     assert first["solved"]
     s = first["stats"]
-    assert s["kernels_queued"] > 0 and s["kernels_native"] == 0, s
+    assert s["kernels_queued"] == MISSING and s["kernels_native"] == n - MISSING, s
     # the detached worker outlives the solve (at low priority: on a loaded machine it may take
     # long); its jobs are directories `jobs/<key>` until it takes one (renamed `<key>.work`, so
     # no longer queued) and compiles it into `<key>.so` (or rejects it: `<key>.failed`); it holds
@@ -64,7 +56,8 @@ def test_default_jit_compiles_in_the_background_and_the_next_solve_uses_the_kern
             lock.close()
             assert not jobs(), f"jobs left without a worker: {jobs()}"
     libs, failed = list(cache.glob("*.so")), list(cache.glob("*.failed"))
-    assert len(libs) + len(failed) == s["kernels_queued"] and not failed, [p.read_text() for p in failed]
-    second = _solve(tmp_path, "b.json", env)
+    assert len(libs) + len(failed) == n and not failed, [p.read_text() for p in failed]
+    assert all((cache / name).is_file() for name in removed)        # built again by the worker
+    second = solve_lab1_child(tmp_path / "b.json", env)
     assert second["solved"] and second["plan"] == first["plan"]
-    assert second["stats"]["kernels_native"] > 0, second["stats"]
+    assert second["stats"]["kernels_native"] == n and second["stats"]["kernels_queued"] == 0, second["stats"]

@@ -120,6 +120,7 @@ def test_rlgp_reuses_the_graph_for_its_pair_costs(run, monkeypatch):
 
 
 @pytest.mark.slow
+@pytest.mark.mobile        # `.ci/run`: with the mobile problems
 def test_solved_plan_cost_is_the_graph_travel(mobile, run):
     """The solution's plan_cost is the sum of the graph costs of its actions (it was the compiled
     task's, i.e. the lower bound's)."""
