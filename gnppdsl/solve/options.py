@@ -84,6 +84,11 @@ class SolveOptions:
                                      # objects of the same type (pairs too, e.g. block and arm)
                                      # that lifting cannot accept; the infeasible ones are learned
                                      # with it (`gnppdsl.conflicts.batch`); 0: off
+    batch_min_factors: int = 200     # ... only for conflicts of plans whose graph-NLP has at least
+                                     # this many factors: a candidate costs about one keyframe's
+                                     # NLP, a loop iteration the whole graph's; on the planar
+                                     # problems (17-120 factors) the batch only added NLPs (p6
+                                     # 10 -> 23), on the Lab families (900+) it saves iterations
     minimise_conflicts: bool = False  # gnpp: drop every fact of a conflict whose factors the
                                      # infeasibility does not need (`gnppdsl.conflicts.minimise`,
                                      # one NLP with restarts per fact)

@@ -80,6 +80,7 @@ class Run(ReachabilityCosts):
         if options.lift_conflicts and compiled.object_key is not None:
             self.lifter = Lifter(compiled.factory, self.task, compiled.problem.objects, compiled.object_key)
         self.batcher: Batcher | None = None
+        self.graph_factors = 0            # factors of the last plan's graph-NLP (`build_graph`)
         if options.batch_conflicts > 0 and options.algorithm != "oneway":
             self.batcher = Batcher(self.lifter or Lifter(compiled.factory, self.task, compiled.problem.objects,
                                                          compiled.object_key or (lambda o: "-")),
@@ -112,6 +113,7 @@ class Run(ReachabilityCosts):
         t0 = time.perf_counter()
         graph = plan_graph(self.compiled.factory, states)
         self.stats.factory_time += time.perf_counter() - t0
+        self.graph_factors = graph.n_factors       # the batch's gate (`batch_min_factors`)
         return graph
 
     def next_plan(self, enumerate_: bool) -> PlanResult:
@@ -194,7 +196,7 @@ class Run(ReachabilityCosts):
             instances = self.lifter.instances(plan.states, sub_factors)
             self.stats.lift_time += time.perf_counter() - t0
         batched: list = []
-        if self.batcher is not None:
+        if self.batcher is not None and self.graph_factors >= self.options.batch_min_factors:
             # NLPs, not logic: left out of logic_time / logic_cpu (its own batch_time)
             t1, c1 = time.perf_counter(), _cpu()
             batched = self.batch(plan, sub_factors, instances)

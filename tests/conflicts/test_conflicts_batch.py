@@ -67,8 +67,10 @@ def uneven_family(tmp: Path, goal: str = "parent(b1) = t1  parent(b3) = t2") -> 
 
 
 def solve(compiled, **kw):
+    # batch_min_factors=0: the batch also for these small planar graphs (by default it serves
+    # graphs of 200+ factors, where a loop iteration costs far more than its candidates)
     opts = replace(SolveOptions.from_settings(compiled.problem.settings, jit=False, time_limit=120,
-                                              planner="sequential"), **kw)
+                                              planner="sequential", batch_min_factors=0), **kw)
     return solve_compiled(compiled, opts)
 
 
