@@ -81,9 +81,9 @@ class Run(ReachabilityCosts):
             self.lifter = Lifter(compiled.factory, self.task, compiled.problem.objects, compiled.object_key)
         self.batcher: Batcher | None = None
         self.graph_factors = 0            # factors of the last plan's graph-NLP (`build_graph`)
-        if options.batch_conflicts > 0 and options.algorithm != "oneway":
+        if options.batch_conflicts > 0 and options.algorithm != "oneway" and compiled.object_key is not None:
             self.batcher = Batcher(self.lifter or Lifter(compiled.factory, self.task, compiled.problem.objects,
-                                                         compiled.object_key or (lambda o: "-")),
+                                                         compiled.object_key),
                                    options.batch_conflicts)
 
     def say(self, msg: str) -> None:
