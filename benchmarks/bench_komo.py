@@ -38,7 +38,8 @@ with that in mind.
 
     python benchmarks/bench_komo.py [--seeds 20] [--no-e2e] [--only gnpp|komo] [--unshared]
         [--against DIR]   # DIR: another gnppdsl tree, e.g. `git archive main | tar -x -C DIR`
-        [--no-kinematic-curvature]   # this tree: FK rows linearised in ipopt's Hessian
+        [--kinematic-curvature auto|true|false]   # this tree's Hessian model of FK rows
+        [--no-kinematic-curvature]   # = --kinematic-curvature false
 """
 from __future__ import annotations
 
@@ -308,10 +309,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--against", type=Path, default=None, metavar="DIR",
                     help="also gnpp from the gnppdsl source tree DIR (e.g. main before a change), "
                          "NLPs in a worker process and end to end, alternating with this tree")
-    ap.add_argument("--no-kinematic-curvature", action="store_true",
-                    help="this tree's gnpp linearises the forward-kinematics rows in ipopt's Hessian "
-                         "(SolverOptions.kinematic_curvature off, `gnpp solve --no-kinematic-curvature`; "
-                         "not the Lab's setting); --against and --unshared keep the domain's")
+    ap.add_argument("--kinematic-curvature", default=None, metavar="auto|true|false",
+                    type=lambda t: {"auto": "auto", "true": True, "false": False}[t.lower()],
+                    help="this tree's gnpp with SolverOptions.kinematic_curvature set so (false: the "
+                         "forward-kinematics rows linearised in ipopt's Hessian; auto: linearised "
+                         "first, exact where that fails; `gnpp solve --kinematic-curvature MODE`); "
+                         "--against and --unshared keep the domain's")
+    ap.add_argument("--no-kinematic-curvature", dest="kinematic_curvature", action="store_const",
+                    const=False, help="= --kinematic-curvature false")
     ap.add_argument("--komo-process", type=int, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -346,10 +351,11 @@ def main(argv: list[str] | None = None) -> int:
           f"Functions built in the unmeasured warm-up; gnppdsl bytecode "
           f"{'cached' if fresh else 'NOT cached (each gnpp process compiles its sources: make setup)'}")
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    if args.no_kinematic_curvature:
-        print("gnpp (this tree): forward-kinematics rows linearised in ipopt's Hessian (--no-kinematic-curvature)")
+    mode = args.kinematic_curvature
+    if mode is not None:
+        print(f"gnpp (this tree): kinematic_curvature {str(mode).lower()}")
     try:
-        mine = {"kinematic_curvature": False} if args.no_kinematic_curvature else {}
+        mine = {} if mode is None else {"kinematic_curvature": mode}
         engines = {"gnpp": Gnpp(mine), "gnpp-unshared": Gnpp({"shared_assembly": False})}
         if "gnpp-against" in sides:
             engines["gnpp-against"] = GnppWorker(args.against.resolve())
@@ -363,8 +369,8 @@ def main(argv: list[str] | None = None) -> int:
             if s.startswith("gnpp"):
                 cmd = [sys.executable, "-m", "gnppdsl.cli.main", "solve", str(LAB / "domain.pntc"),
                        str(problem), "--quiet", "--no-jit", "--json", str(problem.parent / "out.json")]
-                if s == "gnpp" and args.no_kinematic_curvature:
-                    cmd.append("--no-kinematic-curvature")
+                if s == "gnpp" and mode is not None:
+                    cmd.append(f"--kinematic-curvature={str(mode).lower()}")
                 tree = args.against.resolve() if s == "gnpp-against" else ROOT
                 r["e2e"], _ = child_cpu(cmd, scratch, dict(env, PYTHONPATH=str(tree)))
                 res = json.loads((problem.parent / "out.json").read_text())

@@ -30,10 +30,28 @@ def add_curvature_argument(parser: argparse.ArgumentParser) -> None:
                              "(--no-distance-curvature: they enter linearised, cheaper iterations on "
                              "robot domains). Default: the problem's solver setting "
                              "`distance_curvature`, else on")
-    parser.add_argument("--kinematic-curvature", action=argparse.BooleanOptionalAction, default=None,
+    parser.add_argument("--kinematic-curvature", nargs="?", const=True, default=None,
+                        type=kinematic_curvature_mode, metavar="auto|true|false",
                         help="ipopt's Hessian includes the second derivatives of forward-kinematics "
-                             "rows (--no-kinematic-curvature: they enter linearised, Gauss-Newton-like "
-                             "steps). Default: the problem's solver setting `kinematic_curvature`, else on")
+                             "rows (alone or `true`; --no-kinematic-curvature or `false`: they enter "
+                             "linearised, Gauss-Newton-like steps; `auto`: linearised first, exact "
+                             "again from the same start when that does not end feasible). Default: "
+                             "the problem's solver setting `kinematic_curvature`, else auto")
+    parser.add_argument("--no-kinematic-curvature", dest="kinematic_curvature", action="store_const",
+                        const=False, help="= --kinematic-curvature false")
+
+
+def kinematic_curvature_mode(text: str) -> bool | str:
+    """`--kinematic-curvature MODE`: auto, true/on/yes, false/off/no."""
+    t = text.strip().lower()
+    if t == "auto":
+        return "auto"
+    if t in ("true", "on", "yes", "1"):
+        return True
+    if t in ("false", "off", "no", "0"):
+        return False
+    raise argparse.ArgumentTypeError(f"expected auto, true or false, got {text!r} (put the problem "
+                                     "file before a bare --kinematic-curvature)")
 
 
 def add_active_set_argument(parser: argparse.ArgumentParser, default: bool | None = None) -> None:

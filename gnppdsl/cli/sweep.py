@@ -53,7 +53,7 @@ class RunSettings:
     order: str | None = None
     jit: bool = False
     distance_curvature: bool | None = None
-    kinematic_curvature: bool | None = None
+    kinematic_curvature: bool | str | None = None
     planner: str | None = None            # logic mode (None: the problem's setting, else auto)
     anytime: float | None = None          # seconds of the anytime phase (`--anytime`)
     run_timeout: float | None = None      # wall-clock cap of an isolated run (None: derived)

@@ -137,7 +137,7 @@ class DatabaseStats:
     infeasible_hits: int = 0     # NLPs skipped because they contain a known infeasible subgraph
     stored: int = 0              # new records this session
     loaded: int = 0              # records read from the file at open
-    match_time: float = 0.0      # seconds matching graphs in lookup / add (subgraph monomorphisms)
+    match_time: float = 0.0      # seconds matching graphs in lookup / add / loading the file (subgraph monomorphisms)
     budget_exceeded: int = 0     # matches that gave up at `semantic.MATCH_BUDGET` (answered "unknown")
 
 
@@ -200,18 +200,22 @@ class SubgraphDatabase:
         except sqlite3.DatabaseError as exc:
             raise UserError(f"{path}: not a usable subgraph database ({exc})") from None
         self._conn = conn
+        with self._timed():     # the domination checks at load match graphs too (quadratic in records)
+            self._load(rows)
+        self.stats.loaded = len(rows)
+
+    def _load(self, rows: list) -> None:
         for k, (feasible, wl, graph, conflict) in enumerate(rows):
             try:
                 entry = Entry(SemanticGraph.from_json(json.loads(graph)), bool(feasible),
                               _names_from_json(conflict), wl)
             except (ValueError, KeyError, TypeError) as exc:
-                conn.close()
+                self._conn.close()
                 self._conn = None
-                raise UserError(f"{path}: record {k + 1} of domain '{self.scope}' is not readable ({exc}); "
+                raise UserError(f"{self.path}: record {k + 1} of domain '{self.scope}' is not readable ({exc}); "
                                 f"remove the file or choose another --db path") from None
             # records written before a dominating one was found are pruned in memory
             self._insert(entry)
-        self.stats.loaded = len(rows)
 
     def _persist(self, entry: Entry) -> None:
         from gnppdsl import interrupt

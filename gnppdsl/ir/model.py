@@ -442,6 +442,8 @@ SOLVER_NLPS = ("ipopt", "sqpmethod")
 SOLVER_ORDERS = ("full_first", "relaxed_first", "staged")
 # logic modes (gnppdsl.logic.modes): auto = sequential while cheap, then Fast Downward
 SOLVER_PLANNERS = ("auto", "sequential", "fd")
+#: the solver setting `kinematic_curvature` as written -> its value (`SolverOptions`)
+KINEMATIC_CURVATURE_VALUES = {"true": True, "false": False, "auto": "auto"}
 
 
 @dataclass(frozen=True)
@@ -473,7 +475,8 @@ class SolverSettings:
                 in SQP trajectory optimisers (see `gnppdsl.nlp.feasibility.SolverOptions`)
     kinematic_curvature
                 ... and of the rows that use forward kinematics (`fk`); false: those enter
-                linearised too (Gauss-Newton-like steps, as KOMO takes)
+                linearised too (Gauss-Newton-like steps, as KOMO takes); "auto": linearised
+                first, exact again from the same start when that does not end feasible
     optimise    minimise the domain's `minimize` terms from the first feasible solution (true)
     anytime     seconds to look for cheaper logical plans after the first solution (0: off;
                 `gnppdsl.solve.anytime`)
@@ -495,7 +498,7 @@ class SolverSettings:
     order: str | None = None
     jit: bool | None = None
     distance_curvature: bool = True
-    kinematic_curvature: bool = True
+    kinematic_curvature: bool | str = "auto"
     planner: str = "auto"
     optimise: bool = True
     anytime: float = 0.0
@@ -510,7 +513,7 @@ SOLVER_FIELDS: dict[str, type] = {
     "algorithm": str, "switches": str, "nlp": str, "tolerance": float, "time_limit": float,
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
     "order": str, "jit": bool, "distance_curvature": bool,
-    "kinematic_curvature": bool, "planner": str, "optimise": bool,
+    "kinematic_curvature": str, "planner": str, "optimise": bool,
     "anytime": float, "batch_conflicts": int,
 }
 

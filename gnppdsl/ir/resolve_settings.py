@@ -57,6 +57,12 @@ def settings_solver(res, d: ast.SolverDecl, base: M.SolverSettings) -> M.SolverS
         k = s.key.value
         if not _new_known_key(res, s, M.SOLVER_FIELDS, vals, "solver"):
             continue
+        if k == "kinematic_curvature":       # true, false or auto
+            if s.value.kind not in ("name", "string") or s.value.value not in M.KINEMATIC_CURVATURE_VALUES:
+                res.err(s.value.span, "'kinematic_curvature' must be true, false or auto", "setting")
+                continue
+            vals[k] = M.KINEMATIC_CURVATURE_VALUES[s.value.value]
+            continue
         v = _setting_value(res, s, M.SOLVER_FIELDS[k])
         if v is None:
             continue

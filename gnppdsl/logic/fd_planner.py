@@ -17,7 +17,10 @@ conversion that blew up on the Lab domain's `clear(x) := not exists o . parent(o
 reachable, so the relaxation stays an over-approximation and FF's dead ends stay safe.
 The search is lazy greedy best-first with that FF and its preferred operators on unit costs,
 closed states reopened (see DEFAULT_SEARCH for why not the paper's `astar(ff())`): plans are
-short but not proven shortest (`Plan.shortest` is False). `bound = H + 1` keeps plans within the
+short but not proven shortest. Greedy search takes detours (lab5_paper: 18-20 steps where 16
+exist), so each plan is shortened by action elimination (`gnppdsl.logic.elimination`) and by
+searching again below its length for at most `TIGHTEN_CPU` seconds (`_tighten`); `Plan.shortest` is
+True only when such a search answered "no plan". `bound = H + 1` keeps plans within the
 horizon `H`; since FF's dead ends are safe and closed states are reopened when reached by a
 shorter path, "no plan" within the bound is a proof.
 
@@ -37,6 +40,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from gnppdsl.compile.sas import SASTask
+from gnppdsl.logic.elimination import eliminate_actions
 from gnppdsl.logic.fd_guidance import guide
 from gnppdsl.logic.learned import LearnedConstraints
 from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, Plan, PlannerStats, PlanResult, Status
@@ -52,6 +56,15 @@ from gnppdsl.logic.validate import plan_cost, validate_plan
 # plateau of plans the conflict forbids.
 _FF = "ff(axioms=approximate_negative)"
 DEFAULT_SEARCH = f"lazy_greedy([{_FF}], preferred=[{_FF}], reopen_closed=true, bound={{bound}})"
+# FD CPU seconds per `shortest_plan` call spent on searching again below the plan found
+# (`_tighten`): TIGHTEN_FACTOR x the first search's CPU, at least TIGHTEN_MIN, at most
+# TIGHTEN_CPU. lab5_paper's captured searches: the first search 0.01-0.33 s; a bounded search
+# found 14 below 16 in 0.12-0.26 s, 16 below 18 in 1.8 s; proofs that nothing shorter exists
+# take longer (clingo: 4-17 s), so most calls spend their whole budget. A flat 2 s per call cost
+# 12 s CPU of a 45 s CPU lab5_paper solve (6 plans), hence the budget follows the first search.
+TIGHTEN_CPU = 2.0
+TIGHTEN_MIN = 0.25
+TIGHTEN_FACTOR = 5.0
 # FD's exit codes (driver/returncodes.py): 11 = proven unsolvable, 12 = search ended without a
 # plan (incomplete search), 13 = unsolvable within the bound; 22-24 = out of memory / time
 _UNSOLVABLE = (11, 12, 13)
@@ -73,7 +86,8 @@ class FastDownwardPlanner(LearnedConstraints):
     exact mode (`IncrementalPlanner`)."""
 
     def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON, search: str = DEFAULT_SEARCH,
-                 binary: Path | None = None, guided: bool = True) -> None:
+                 binary: Path | None = None, guided: bool = True, eliminate: bool = True,
+                 tighten: float = TIGHTEN_CPU) -> None:
         binary = binary or downward_binary()
         if binary is None:
             raise RuntimeError("the Fast Downward planner needs the package up-fast-downward "
@@ -82,6 +96,12 @@ class FastDownwardPlanner(LearnedConstraints):
         self.max_horizon = max_horizon
         self.search = search
         self.guided = guided               # conflicts as redundant preconditions (fd_guidance)
+        self.eliminate = eliminate         # drop unneeded operators from FD's plans (`elimination`)
+        self.eliminated: list[tuple[int, int]] = []   # per plan: (FD's length, length returned)
+        self.tighten = tighten             # FD CPU seconds per call for shorter plans (`_tighten`)
+        self.tightened: list[tuple[int, str, int]] = []   # per bounded search: (length, answer, new length)
+        self.lower_bound = 0               # no plan is shorter (set by `auto` from clingo's proofs)
+        self._first_cpu = 0.0              # FD CPU of the call's first search (the budget follows it)
         self.binary = binary
         self.stats = PlannerStats()
         LearnedConstraints.__init__(self)
@@ -104,16 +124,20 @@ class FastDownwardPlanner(LearnedConstraints):
 
     # ---- solving -----------------------------------------------------------------------
     def shortest_plan(self, max_horizon: int | None = None, time_limit: float | None = None,
-                      minimize_cost: bool = False) -> PlanResult:
-        """A plan of length <= the horizon under all conflicts and blocked plans (not proven
-        shortest: `plan.shortest` is False). `minimize_cost` is refused (pair costs are not a
-        SAS+ notion; use the sequential planner)."""
+                      minimize_cost: bool = False, tighten_limit: float | None = None) -> PlanResult:
+        """A plan of length <= the horizon under all conflicts and blocked plans, shortened by
+        `_tighten` (`plan.shortest` only when proven). `minimize_cost` is refused (pair costs are not a
+        SAS+ notion; use the sequential planner). `tighten_limit`: wall seconds for the bounded
+        searches after the first plan (default: what is left of `time_limit`; `auto` gives them
+        the solve's time left rather than its turn: they are bounded by `tighten` CPU seconds)."""
         if minimize_cost:
             raise ValueError("the Fast Downward planner does not minimise costs: use planner = sequential")
         start = time.perf_counter()
         H = self.max_horizon if max_horizon is None else max_horizon
         self.horizon = max(self.horizon, H)
+        cpu0 = self.fd_cpu
         status, ops = self._run(H, time_limit)
+        self._first_cpu = self.fd_cpu - cpu0
         elapsed = time.perf_counter() - start
         if status is Status.TIMEOUT:
             return PlanResult(Status.TIMEOUT, None, H, elapsed,
@@ -123,19 +147,65 @@ class FastDownwardPlanner(LearnedConstraints):
             return PlanResult(Status.NO_PLAN, None, H, elapsed,
                               f"no plan up to horizon {H} for task {self.task.name}{self._under()}")
         plan = self._plan(ops)
-        return PlanResult(Status.FOUND, plan, len(plan), elapsed, f"found a plan of length {len(plan)}")
+        first = len(ops)
+        left = None if time_limit is None else time_limit - elapsed
+        plan = self._tighten(plan, left if tighten_limit is None else tighten_limit)
+        elapsed = time.perf_counter() - start
+        note = f" (Fast Downward's first: {first}; shorter by action elimination and bounded searches)" \
+            if len(plan) < first else ""
+        if plan.shortest:
+            note += " (proven shortest)"
+        return PlanResult(Status.FOUND, plan, len(plan), elapsed, f"found a plan of length {len(plan)}{note}")
+
+    def _tighten(self, plan: Plan, time_limit: float | None) -> Plan:
+        """Shorter plans within a budget of FD CPU seconds (TIGHTEN_FACTOR x the first search, in
+        [TIGHTEN_MIN, `self.tighten`]; 0 turns it off): search again with the bound
+        len(plan) - 1 until no plan (then the plan is proven shortest: the bounded search is
+        complete, see the module docstring), the budget or `time_limit` (wall) runs out, or
+        the plan reaches `self.lower_bound` (a length below which no plan exists, e.g. the
+        horizon the clingo planner of `auto` has proven empty so far)."""
+        budget = min(self.tighten, max(TIGHTEN_MIN, TIGHTEN_FACTOR * self._first_cpu))
+        start, cpu0 = time.perf_counter(), self.fd_cpu
+        while budget > 0 and len(plan) > 0:
+            if len(plan) <= self.lower_bound:
+                return replace(plan, shortest=True)
+            left = budget - (self.fd_cpu - cpu0)
+            wall = None if time_limit is None else time_limit - (time.perf_counter() - start)
+            if left <= 0.01 or (wall is not None and wall <= 0.01):
+                break
+            status, ops = self._run(len(plan) - 1, wall, cpu_limit=left)
+            self.tightened.append((len(plan), status.value, len(ops)))
+            if status is Status.NO_PLAN:
+                return replace(plan, shortest=True)
+            if status is not Status.FOUND:
+                break
+            plan = self._plan(ops)
+        return plan
 
     def next_plan(self, *args, **kwargs) -> PlanResult:
         raise ValueError("plan enumeration in order of length (One-way) needs planner = sequential")
 
     def _plan(self, ops: list[int]) -> Plan:
+        """FD's plan, checked on the original task, shortened by action elimination (a
+        subsequence that the task, every conflict and every blocked plan still allow), checked
+        again."""
         check = validate_plan(self.task, ops, self.conflicts)
         if not check.valid or tuple(ops) in self._blocked_set:
             raise AssertionError(f"Fast Downward returned a plan the task forbids: {check.error or 'blocked'}")
+        if self.eliminate:
+            found = len(ops)
+            ops = list(eliminate_actions(self.task, ops, self.conflicts, self._blocked_set))
+            self.eliminated.append((found, len(ops)))
+            if len(ops) < found:
+                check = validate_plan(self.task, ops, self.conflicts)
+                if not check.valid or tuple(ops) in self._blocked_set:
+                    raise AssertionError(f"action elimination returned a plan the task forbids: "
+                                         f"{check.error or 'blocked'}")
         names = tuple(self.task.operators[o].name for o in ops)
         return Plan(tuple(ops), names, tuple(check.states), plan_cost(self.task, ops))
 
-    def _run(self, horizon: int, time_limit: float | None) -> tuple[Status, list[int]]:
+    def _run(self, horizon: int, time_limit: float | None,
+             cpu_limit: float | None = None) -> tuple[Status, list[int]]:
         """Write the compiled task (with `fd_guidance`'s copies) and run FD's search on it.
         Operators are renamed `o<i> c<k>`, i the operator they copy (the plan maps back to indices
         even where names repeat or empty operators are left out), and cost 1 each: the planner looks for short plans, and FD's `bound` cuts on real costs."""
@@ -151,6 +221,10 @@ class FastDownwardPlanner(LearnedConstraints):
         self.stats.ground_time += time.perf_counter() - t0
         self.stats.ground_calls += 1
         search = self.search.format(bound=horizon + 1)
+        if cpu_limit is not None and search.endswith(")"):
+            # FD's own limit (its timer counts the process's CPU time; "Time limit reached" and
+            # exit 12, which alone would read as "no plan")
+            search = f"{search[:-1]}, max_time={max(cpu_limit, 0.01):.3f})"
         t1 = time.perf_counter()
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         self.stats.solve_calls += 1
@@ -164,6 +238,8 @@ class FastDownwardPlanner(LearnedConstraints):
                 except subprocess.TimeoutExpired:
                     return Status.TIMEOUT, []
                 if proc.returncode in _UNSOLVABLE:
+                    if "Time limit reached" in proc.stdout:
+                        return Status.TIMEOUT, []
                     return Status.NO_PLAN, []
                 if proc.returncode != 0 or not plan_file.is_file():
                     tail = (proc.stdout + proc.stderr)[-1500:]

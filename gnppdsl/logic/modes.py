@@ -3,7 +3,8 @@
     sequential  clingo, horizon after horizon (`IncrementalPlanner`): shortest plans, plan
                 enumeration in order of length (One-way), cheapest plans (R-LGP)
     fd          Fast Downward's greedy search with FF on the Appendix-B task (`FastDownwardPlanner`):
-                short plans without any proof about shorter ones
+                short plans (action elimination, bounded searches below them), shortest only
+                when a bounded search proves it
     auto        sequential while cheap, Fast Downward once a call's horizon proofs cost more
                 than `switch_after` seconds (the default; `AutoPlanner`); after the switch
                 each call alternates Fast Downward and clingo in turns of doubling length
@@ -171,7 +172,14 @@ class AutoPlanner:
                 if left is not None and left <= 0:
                     return res or PlanResult(Status.TIMEOUT, None, 0, time.perf_counter() - start,
                                              f"time limit of {time_limit:g} s reached for task {self.task.name}")
-                res = planner.shortest_plan(max_horizon, turn if left is None else min(turn, left))
+                limit = turn if left is None else min(turn, left)
+                if planner is self.fd:
+                    self.fd.lower_bound = self.sequential._lowest   # clingo's proofs: nothing shorter
+                    # the first search gets the turn; the bounded searches for shorter plans after
+                    # it are bounded by their CPU budget (TIGHTEN_CPU) and the time left
+                    res = self.fd.shortest_plan(max_horizon, limit, tighten_limit=left)
+                else:
+                    res = planner.shortest_plan(max_horizon, limit)
                 self.turns.append((name, turn))
                 if res.status is not Status.TIMEOUT:
                     res.time = time.perf_counter() - start

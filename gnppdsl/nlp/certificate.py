@@ -72,7 +72,10 @@ def certify_infeasible(solver: FeasibilitySolver, graph: GraphNLP, point: Feasib
         for f in within.graph.neighbors(v):   # stationarity residual would be about that push
             if f not in mine and f in duals.rows and np.abs(duals.rows[f]).max(initial=0.0) > PUSH:
                 return None
-    a = solver.assemble(within)
+    # the exact Hessian: with the forward-kinematics rows linearised (kinematic_curvature false,
+    # the first pass of auto) the second-order test below would be about another model, and a
+    # certified verdict becomes a conflict
+    a = solver.exact_assembly(within)
     n, n_in, n_eq = a.n_x, a.n_ineq, a.n_eq
     x, x0, lam_x = (_stacked(d, a.variables) for d in (point.values, duals.start, duals.bounds))
     z = elastic_point(a, x)

@@ -45,74 +45,7 @@ from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 from gnppdsl.nlp import shape_cache
 from gnppdsl.nlp.monitor import IterationMonitor as _Monitor
-
-
-@dataclass
-class SolverOptions:
-    tolerance: float = 1e-6        # max constraint violation accepted as feasible
-    regularisation: float = 1e-2   # rho: weight of the pull towards the start point
-    max_iter: int = 500
-    restarts: int = 2              # extra random restarts after an infeasible verdict: a false
-                                   # "infeasible" would prune feasible plans (Theorem 7.1)
-    noise: float = 0.1             # std of the default start perturbation (x10 on restarts)
-    restart_noise: float = 0.3     # std of the perturbation of the initial guess on odd restarts
-    ipopt: dict = field(default_factory=dict)   # extra nlpsol options ("ipopt.xyz": value)
-    plugin: str = "ipopt"          # casadi nlpsol plugin: "ipopt" or "sqpmethod" (qrqp)
-    time_limit: float | None = None   # wall-clock seconds per ipopt run
-    early_stop: bool | str = "auto"   # ipopt: stop once the real rows hold, or on a stall
-                                   # (_Monitor); "auto": when geometry primitives appear (the
-                                   # Python callback costs ~50 us per iteration, +30 % on toys)
-    stall_iterations: int = 60     # ipopt: stop after this many iterations without 1 % progress
-    hessian: str = "exact"         # ipopt: "exact" or "limited-memory" (L-BFGS: no Hessian
-                                   # construction; on the lab1 full graph with trajectories
-                                   # 3.5 s + 30 s (240 it) vs exact 16-26 s + 26-31 s (90 it))
-    distance_curvature: bool = True   # ipopt's exact Hessian includes the second derivatives
-                                   # of rows querying signed distances; False: they enter the
-                                   # Hessian linearised (`_hessian_function` says why)
-    kinematic_curvature: bool = True  # ... and of rows using forward kinematics (`fk`); False:
-                                   # they enter linearised too (Gauss-Newton-like steps, as
-                                   # KOMO takes; `_hessian_function`)
-    assembly: str = "auto"         # "SX" | "MX" | "auto" (MX when geometry primitives appear)
-    cache_size: int = 512          # assembled NLPs kept (LRU) per FeasibilitySolver
-    polish: bool = True            # re-solve an infeasible verdict with rho * 1e-4 from x*
-    polish_below: float = 1e-3     # polish at once (before random restarts) a start that ends
-                                   # this close to feasible: a stall near a solution, which
-                                   # restarts from random points only repeat from farther away
-    final_polish_below: float = math.inf   # polish the best point after the last start when
-                                   # its violation is below this (the solve loop lowers it for
-                                   # a one-start verdict that is confirmed later: there the
-                                   # confirmation polishes)
-    shared_assembly: bool = True   # graphs of one structure share one assembled NLP
-                                   # (`shape_cache`; False: each graph assembles its own)
-    near_start_below: float = 1e-3  # a first start whose rows all hold within this is run by
-                                   # ipopt with a small bound push (`FeasibilitySolver._near`);
-                                   # 0 turns it off
-
-    def nlpsol_options(self) -> dict:
-        if self.plugin == "sqpmethod":
-            opts = {"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
-                                                       "error_on_fail": False},
-                    "print_header": False, "print_iteration": False, "print_status": False,
-                    "print_time": False, "error_on_fail": False, "max_iter": self.max_iter,
-                    "tol_pr": min(1e-8, 0.01 * self.tolerance), "tol_du": 1e-9}
-            opts.update(self.ipopt)
-            return opts
-        if self.plugin != "ipopt":
-            raise UserError(f"unknown nlp solver {self.plugin!r} (use ipopt or sqpmethod)")
-        opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-                "ipopt.max_iter": self.max_iter, "ipopt.tol": 1e-9,
-                "ipopt.constr_viol_tol": min(1e-8, 0.01 * self.tolerance),
-                "ipopt.mu_strategy": "adaptive", "error_on_fail": False,
-                # no multipliers of the parameters, so no `nlp_grad` (a reverse sweep through
-                # every body, unused by the verdict): 0.3 s per Panda full-graph NLP
-                "calc_lam_p": False, "no_nlp_grad": True}
-        if self.time_limit is not None:
-            opts["ipopt.max_wall_time"] = float(self.time_limit)
-        if self.hessian not in ("exact", "limited-memory"):
-            raise UserError(f"unknown Hessian mode {self.hessian!r} (use exact or limited-memory)")
-        opts["ipopt.hessian_approximation"] = self.hessian
-        opts.update(self.ipopt)
-        return opts
+from gnppdsl.nlp.solver_options import KINEMATIC_CURVATURE_MODES, CurvatureTrials, SolverOptions  # noqa: F401
 
 
 @dataclass
@@ -204,6 +137,8 @@ class _Assembled:
     polisher: ca.Function | None = None
     near: ca.Function | None = None    # `FeasibilitySolver._near`, built on first use
     root: "_Assembled | None" = None   # the assembly this one shares its solver with (shape_cache)
+    linearised: bool = False           # forward-kinematics rows left out of ipopt's Hessian
+                                       # (`kinematic_curvature` false or the first pass of "auto")
 
 
 def elastic_point(a: _Assembled, x: np.ndarray) -> np.ndarray:
@@ -307,6 +242,20 @@ class FeasibilitySolver:
         self._built = 0
         self.solves = 0                 # ipopt runs
         self.solve_time = 0.0
+        self.curvature_fallbacks = 0    # solves whose linearised runs failed and got exact ones
+        self.curvature_rescues = 0      # ... of which the exact Hessian made feasible
+        self._exact_pass = False        # assembling the exact Hessian (`exact_assembly`)
+        self.trials = CurvatureTrials()  # ... how its linearised runs fared (a loop shares one)
+        kc = self.options.kinematic_curvature
+        if kc not in KINEMATIC_CURVATURE_MODES:
+            raise UserError(f"kinematic_curvature must be true, false or auto, not {kc!r}")
+
+    @property
+    def kinematic_exact(self) -> bool:
+        """Whether the NLPs assembled now keep the forward-kinematics rows' second derivatives
+        in ipopt's Hessian: the setting (linearised first under "auto"), unless the exact
+        one is being assembled (`exact_assembly`)."""
+        return self._exact_pass or self.options.kinematic_curvature is True
 
     # -- cost -------------------------------------------------------------------------------
     def iteration_cost(self, graph: GraphNLP) -> float:
@@ -331,7 +280,7 @@ class FeasibilitySolver:
         # plans' graphs could share refs for different factors. A hit from another graph gets
         # its factor rows re-labelled with that graph's refs.
         inst = list(graph.iter_factors())
-        key = (frozenset(graph.variables), frozenset(id(f) for _, f in inst))
+        key = (frozenset(graph.variables), frozenset(id(f) for _, f in inst), self.kinematic_exact)
         a = self._nlps.get(key)
         if a is not None:
             self._nlps.move_to_end(key)
@@ -438,11 +387,15 @@ class FeasibilitySolver:
         lbg = np.concatenate([np.full(ineq.size, -np.inf), np.zeros(eq.size), np.zeros(len(quats))])
         ubg = np.zeros(ineq.size + eq.size + len(quats))
         fac = dict((r, f) for r, f in inst)
+        linearised = "hess_lag" in opts and not self.kinematic_exact and any(
+            "fk" in cb.primitives and (self.options.distance_curvature or not DISTANCE_PRIMITIVES & cb.primitives)
+            for _, cb, _ in compiled)
         a = _Assembled(solver, h_fun, variables, offsets, n, kinds_arr, factor_rows, params,
                        ineq.size, eq.size, lbz, ubz, lbg, ubg, monitor,
                        tuple(fac[r] for r, _, _ in factor_rows),
                        (f"elastic_{self._built}", self.options.plugin,
-                        {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P, rho)}, opts))
+                        {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P, rho)}, opts),
+                       linearised=linearised)
         self._remember(key, a)
         shape_cache.store(self.compiler, skey, a, [cb for _, cb, _ in compiled])
         return a
@@ -457,7 +410,7 @@ class FeasibilitySolver:
         `max_wall_time`: see `_wall_time_holds`."""
         o = self.options
         opts = {k: v for k, v in o.nlpsol_options().items() if k != "ipopt.max_wall_time"}
-        return (use_mx, o.plugin, o.hessian, o.distance_curvature, o.kinematic_curvature,
+        return (use_mx, o.plugin, o.hessian, o.distance_curvature, self.kinematic_exact,
                 o.early_stop, o.assembly,
                 repr(sorted((k, repr(v)) for k, v in opts.items())))
 
@@ -597,7 +550,7 @@ class FeasibilitySolver:
         for cb, k, stacked, p0, r0 in layout:
             if not self.options.distance_curvature and DISTANCE_PRIMITIVES & cb.primitives:
                 continue
-            if not self.options.kinematic_curvature and "fk" in cb.primitives:
+            if not self.kinematic_exact and "fk" in cb.primitives:
                 continue
             hf = self.compiler.hessian(cb)
             sp = hf.sparsity_out(0)
@@ -799,6 +752,17 @@ class FeasibilitySolver:
         values = {v: x[off:off + v.dim].copy() for v, off in zip(a.variables, a.offsets)}
         return values, per, max(per.values(), default=0.0)
 
+    def exact_assembly(self, graph: GraphNLP) -> _Assembled:
+        """`graph`'s NLP with the forward-kinematics rows' second derivatives in ipopt's
+        Hessian whatever `kinematic_curvature` says (the second pass of "auto"; what
+        `gnppdsl.nlp.certificate` reads its Hessian from), assembled on first use and cached
+        like the other."""
+        self._exact_pass = True
+        try:
+            return self.assemble(graph)
+        finally:
+            self._exact_pass = False
+
     def solve(self, graph: GraphNLP, warm_start: Mapping[VarInstance, np.ndarray] | None = None,
               initial_guess: Mapping[VarInstance, np.ndarray] | None = None,
               seed: int = 0, first_attempt: int = 0) -> FeasibilityResult | None:
@@ -806,30 +770,56 @@ class FeasibilitySolver:
 
         `first_attempt` k > 0 runs only the random restarts k..`restarts` (the starts of an
         earlier call with restarts=0 are not repeated): how a verdict found from one start is
-        confirmed later. None when no attempt is left."""
+        confirmed later. None when no attempt is left.
+
+        With kinematic_curvature "auto", each start is run (and polished) with the forward-
+        kinematics rows linearised in the Hessian; when that does not end feasible, the same
+        start is run again with the exact Hessian before the next start. So no verdict, and
+        no conflict learnt from it, rests on linearised runs alone: an infeasible verdict has
+        had every start with the exact Hessian, as with kinematic_curvature true. Why: the
+        Gauss-Newton model is faster where it converges (bench_komo keyframe NLP) but stalls
+        on some of Lab 3's handover keyframes that the exact model solves. After
+        `trial_patience` solves in a row that needed the fallback, the solvers sharing
+        `trials` (one loop) run the exact Hessian only: on the Lab's infeasible NLPs a
+        linearised run stalls after 75-185 iterations where the exact one ends in 21-56."""
         t0 = time.perf_counter()
         tol = self.options.tolerance
         if graph.n_factors == 0:
             return FeasibilityResult(True, {}, {}, 0.0, 0.0, 0.0, 0, "no factors", 0)
-        a = self.assemble(graph)
-        best = None
+        auto = self.options.kinematic_curvature == "auto"
+        a = self.exact_assembly(graph) if auto and self.trials.given_up else self.assemble(graph)
+        fallback = auto and a.linearised
+        exact = None                     # the exact twin of a, once a start needed it
+        tried = fallback                 # this solve tries linearised runs (trial_patience)
+        best = None                      # (values, per, worst, slack, status, x, lam)
         iters, starts = 0, 0
         polished = False                 # the current best is a polished point
         for k in range(first_attempt, 1 + max(0, self.options.restarts)):
             x0 = self._start(a, graph, warm_start, initial_guess, seed, k)
-            x, slack, it, status, lam = self._run(a, x0, self.options.regularisation)
-            iters += it
-            starts += 1
-            values, per, worst = self._verdict(a, x)
-            if best is None or worst < best[2]:
-                best, polished = (values, per, worst, slack, status, x, lam), False
-            if tol < worst <= self.options.polish_below and self.options.polish:
-                x, slack, it, status, lam = self._run(a, x, self.options.regularisation * 1e-4, lam)
+            for b in (a, None) if fallback else (a,):
+                trial = fallback and b is a      # a linearised run of "auto": counts if feasible
+                if b is None:
+                    if exact is None:
+                        exact = self.exact_assembly(graph)
+                    b = exact
+                x, slack, it, status, lam = self._run(b, x0, self.options.regularisation)
                 iters += it
-                values, per, worst = self._verdict(a, x)
-                if worst <= best[2]:
-                    best, polished = (values, per, worst, slack, status, x, lam), True
-            if best[2] <= tol:
+                starts += 1
+                values, per, worst = self._verdict(b, x)
+                mine = (values, per, worst, slack, status, x, lam), False
+                if tol < worst <= self.options.polish_below and self.options.polish:
+                    x, slack, it, status, lam = self._run(b, x, self.options.regularisation * 1e-4, lam)
+                    iters += it
+                    values, per, worst = self._verdict(b, x)
+                    if worst <= mine[0][2]:
+                        mine = (values, per, worst, slack, status, x, lam), True
+                if trial and mine[0][2] > tol:
+                    continue                 # not a verdict: the exact run from x0 decides
+                if best is None or mine[0][2] < best[2] or (mine[1] and mine[0][2] <= best[2]):
+                    best, polished = mine
+                if best[2] <= tol:
+                    break
+            if best is not None and best[2] <= tol:
                 break
         if best is None:
             return None
@@ -837,14 +827,23 @@ class FeasibilitySolver:
             # The pull towards the start can outweigh the L1 penalty of a badly scaled row
             # (gradient below rho): re-solve the best point with a much weaker pull before
             # believing an infeasible verdict.
-            x, slack, it, status, lam = self._run(a, best[5], self.options.regularisation * 1e-4, best[6])
+            b = exact if exact is not None else a
+            x, slack, it, status, lam = self._run(b, best[5], self.options.regularisation * 1e-4, best[6])
             iters += it
-            values, per, worst = self._verdict(a, x)
+            values, per, worst = self._verdict(b, x)
             # on a tie the polished point: the same violation, and its multipliers show the
             # contradiction without the pull's forces (`gnppdsl.nlp.certificate`)
             if worst <= best[2]:
                 best = (values, per, worst, slack, status, x, lam)
         values, per, worst, slack, status, _, lam = best
+        if tried:
+            fell_back = exact is not None
+            self.curvature_fallbacks += fell_back
+            self.curvature_rescues += fell_back and worst <= tol
+            t = self.trials
+            t.failed_in_a_row = t.failed_in_a_row + 1 if fell_back else 0
+            patience = self.options.trial_patience
+            t.given_up = t.given_up or (patience > 0 and t.failed_in_a_row >= patience)
         _raise_on_nan(graph, per)
         dt = time.perf_counter() - t0
         self.solve_time += dt

@@ -77,8 +77,8 @@ class TrajectoryPhase(CheckMemory):
         self.values.update(r.values if r.feasible else
                            {v: x for v, x in r0.values.items() if v in modes.variables})
 
-    def motions_between_keyframes(self, g: GraphNLP, trajs: Sequence[VarInstance], warm: dict
-                                  ) -> FeasibilityResult | None:
+    def motions_between_keyframes(self, g: GraphNLP, trajs: Sequence[VarInstance], warm: dict,
+                                  max_joined: int | None = None) -> FeasibilityResult | None:
         """The motions of g phase by phase with the keyframes fixed at the mode-switch solution:
         one small NLP per phase i, the time slice g[i..i+1] without other phases' motions, whose
         keyframe variables have lower = upper bound = their value. When every phase is solved,
@@ -94,7 +94,7 @@ class TrajectoryPhase(CheckMemory):
         A phase that fails with its keyframes fixed joins the keyframes (`keyframes_with_motions`:
         the mode switches and that motion in one NLP, the keyframes free), and the other phases
         are solved again between the keyframes that NLP returns; up to MAX_JOINED_MOTIONS
-        phases, then the joint solve of g. Never a verdict: a phase that fails here says
+        phases (`max_joined`, default MAX_JOINED_MOTIONS), then the joint solve of g. Never a verdict: a phase that fails here says
         nothing about g (the keyframes may have to move differently), so nothing here is
         stored as a result or becomes a conflict."""
         if any(v not in self.values for v in g.variables if not v.waypoints):
@@ -105,7 +105,7 @@ class TrajectoryPhase(CheckMemory):
             failed = self.phases_between_keyframes(g, trajs, warm, fixed_values, joined)
             if failed is None:
                 break
-            if len(joined) >= MAX_JOINED_MOTIONS:
+            if len(joined) >= (MAX_JOINED_MOTIONS if max_joined is None else max_joined):
                 self.run.say(f"  {g.name}: motion {failed} not found with fixed keyframes; "
                              "solving all motions jointly")
                 warm.update(fixed_values)

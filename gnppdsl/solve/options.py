@@ -47,7 +47,9 @@ class SolveOptions:
                                      # compiled now, False: never (`jit.mode`)
     distance_curvature: bool = True  # ipopt's Hessian includes the curvature of signed-distance rows
                                      # (`SolverOptions.distance_curvature`)
-    kinematic_curvature: bool = True  # ... and of forward-kinematics rows (`SolverOptions.kinematic_curvature`)
+    kinematic_curvature: bool | str = "auto"  # ... and of forward-kinematics rows (True, False or
+                                     # "auto": `SolverOptions.kinematic_curvature`; docs/design.md,
+                                     # "Linearised first, exact where that fails")
     planner: str = "auto"            # logic mode (`gnppdsl.logic.modes`): auto | sequential | fd
     lazy_search: bool = True         # gnpp: Alg. 1's search solves each small subgraph from one
                                      # start, only the conflict gets the restarts (`FeasibilityCheck.confirm`);
@@ -126,6 +128,8 @@ class SolveOptions:
             problem = setting_problem(key, value) if value is not None else None
             if problem is not None:
                 raise UserError(f"{key} {value} {problem}")
+        if self.kinematic_curvature not in (True, False, "auto"):
+            raise UserError(f"kinematic_curvature '{self.kinematic_curvature}' is not available (use true, false or auto)")
         if self.planner not in PLANNERS:
             raise UserError(f"planner '{self.planner}' is not available (use {', '.join(PLANNERS)})")
         if self.planner == "fd" and self.algorithm != "gnpp":

@@ -90,6 +90,9 @@ class Stats:
     nlp_solves: int = 0               # NLPs handed to the solver (database hits not counted)
     ipopt_runs: int = 0               # solver runs behind them (multi-starts, polish re-solves)
     nlp_time: float = 0.0             # seconds inside the NLP solver
+    curvature_fallbacks: int = 0      # kinematic_curvature auto: NLPs whose linearised runs did not
+                                      # end feasible and were run again with the exact Hessian
+    curvature_rescues: int = 0        # ... of which the exact runs found feasible
     logic_time: float = 0.0           # seconds in the logic planner (incl. adding conflicts)
     logic_cpu: float = 0.0            # CPU seconds of the same (Fast Downward's child processes included)
     factory_time: float = 0.0         # seconds building graph-NLPs
@@ -254,7 +257,9 @@ class Result:
             if len(self.conflicts) > max_conflicts:
                 lines.append(f"  ... {len(self.conflicts) - max_conflicts} more (see --json)")
         lines.append(
-            f"stats: NLPs {s.nlp_solves} ({s.ipopt_runs} solver runs, {s.nlp_time:.2f} s), logic {s.logic_time:.2f} s, "
+            f"stats: NLPs {s.nlp_solves} ({s.ipopt_runs} solver runs, {s.nlp_time:.2f} s"
+            + (f", {s.curvature_fallbacks} exact-Hessian fallbacks, {s.curvature_rescues} feasible"
+               if s.curvature_fallbacks else "") + f"), logic {s.logic_time:.2f} s, "
             f"factory {s.factory_time:.2f} s, " + (f"reachability {s.reach_time:.2f} s, " if s.reach_time else "")
             + f"plans {s.plans}, conflicts {s.conflicts}, "
             f"N0 {_opt(s.N0)}{'' if s.N0_shortest is not False else ' (not proven shortest)'}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"

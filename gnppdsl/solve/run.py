@@ -106,6 +106,8 @@ class Run(ReachabilityCosts):
                              kinematic_curvature=self.options.kinematic_curvature, **kw)
         solver = deadline_solver(FeasibilitySolver)(self.compiled.geometry, opts, compiler=self.compiler)
         solver.deadline = self.deadline
+        if self.solvers:                 # kinematic_curvature auto: one record for the run
+            solver.trials = self.solvers[0].trials
         self.solvers.append(solver)
         return solver
 
@@ -302,6 +304,8 @@ class Run(ReachabilityCosts):
         self.stats.nlp_solves = self.nlp_calls + self.heuristic_solves
         self.stats.ipopt_runs = sum(s.solves for s in self.solvers)
         self.stats.nlp_time = sum(s.solve_time for s in self.solvers)
+        self.stats.curvature_fallbacks = sum(s.curvature_fallbacks for s in self.solvers)
+        self.stats.curvature_rescues = sum(s.curvature_rescues for s in self.solvers)
 
     def stop_result(self, res: PlanResult) -> Result:
         from gnppdsl.logic.planner import Status

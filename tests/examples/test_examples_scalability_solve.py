@@ -24,6 +24,11 @@ def test_stack_4_solved_and_verified(mode):
     r = solve_compiled(comp, SolveOptions.from_settings(comp.problem.settings, planner=mode, jit=False))
     assert r.solved, r.message
     assert r.stats.N == 4                     # N0 = N = number of blocks (expected.yaml)
-    assert r.stats.N0_shortest is (mode == "sequential")
+    # sequential proves N0 shortest; Fast Downward only when its bounded searches below the
+    # plan answered "no plan" (`FastDownwardPlanner._tighten`), and then it is N0 = 4 too
+    if mode == "sequential":
+        assert r.stats.N0_shortest is True
+    else:
+        assert r.stats.N0_shortest is False or r.stats.N0 == 4
     rep = verify_solution(comp.geometry, r)
     assert rep.ok, rep.failures[:3]

@@ -179,3 +179,42 @@ def test_a_failed_verification_is_not_solved_and_exits_1(tmp_path, monkeypatch, 
     assert rc == 1 and d["status"] == "no_plan"
     assert any(c["text"] == "{parent(b1) = g} -> {parent(b1) = r1}" and "avoid" in " ".join(c["factors"])
                for c in d["conflicts"]), d["conflicts"]
+
+
+def test_a_round_of_the_active_set_repairs_the_motions_phase_by_phase(wall, monkeypatch):
+    """The graph with the round's pair factors is solved from the solution motion by motion
+    between the keyframes (`Coverage.repair`), not as one NLP of every motion: the motions
+    without a new pair keep their waypoints exactly (a numpy check, no NLP), and no NLP is
+    built over the whole augmented graph. The result is still verified afresh and clean."""
+    from gnppdsl.solve.coverage import Coverage
+    from gnppdsl.solve.feasibility_check import FeasibilityCheck
+
+    c, opts = wall
+    repairs, local = [], []
+    real_repair, real_local = Coverage.repair, FeasibilityCheck.local_solve
+
+    def repair(self, check, graph, values):
+        r = real_repair(self, check, graph, values)
+        repairs.append((graph, dict(values), r))
+        return r
+
+    def local_solve(self, g, warm):
+        local.append(g.signature())
+        return real_local(self, g, warm)
+
+    monkeypatch.setattr(Coverage, "repair", repair)
+    monkeypatch.setattr(FeasibilityCheck, "local_solve", local_solve)
+    fixed = solve_compiled(c, opts)
+    assert fixed.status == "solved", fixed.message
+    assert "active set added" in fixed.message and verify(c, fixed).ok
+    assert repairs and all(r is not None for _, _, r in repairs)
+    graph, before, r = repairs[0]
+    assert r is not False and r.feasible, "the wall round is repaired phase by phase"
+    assert graph.signature() not in local            # no joint solve of the augmented graph
+    new = [f for f in graph.factor_instances if f.rule == "avoid"]
+    touched = {v for f in new for v in f.variables if v.waypoints}
+    assert touched
+    kept = [v for v in graph.variables if v.waypoints and v not in touched and
+            not any(u in touched for u in graph.variables if u.step == v.step and u.waypoints)]
+    moved = [v for v in kept if not np.array_equal(np.asarray(r.values[v]), np.asarray(before[v]))]
+    assert kept and not moved, (kept, moved)

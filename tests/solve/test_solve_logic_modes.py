@@ -84,5 +84,7 @@ def test_gnpp_loop_in_every_mode(mode, name):
         assert r.stats.N0 == e["n0"] and r.stats.N0_shortest
         assert r.stats.N == e["n"]
     else:
-        assert r.stats.N0 >= e["n0"] and r.stats.N >= e["n"] and r.stats.N0_shortest is False
+        assert r.stats.N0 >= e["n0"] and r.stats.N >= e["n"]
+        # proven shortest only by a bounded search's "no plan" below it (FastDownwardPlanner._tighten)
+        assert r.stats.N0_shortest is False or r.stats.N0 == e["n0"]
     assert r.stats.first_plan_time is not None and r.stats.conflicts >= 1

@@ -181,8 +181,8 @@ def test_motions_are_solved_phase_by_phase_between_fixed_keyframes(monkeypatch, 
     results = []
     real = FeasibilityCheck.motions_between_keyframes
 
-    def spy(self, g, trajs, warm):
-        r = real(self, g, trajs, warm)
+    def spy(self, g, trajs, warm, **kw):
+        r = real(self, g, trajs, warm, **kw)
         results.append(r is not None)
         return r
 

@@ -1,0 +1,98 @@
+"""`SolverOptions`: the settings of one `gnppdsl.nlp.feasibility.FeasibilitySolver` (tolerance,
+restarts, polish, ipopt's options, which second derivatives enter ipopt's Hessian) and the
+casadi nlpsol options they give. Light: no casadi import.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from gnppdsl.errors import UserError
+
+#: values of `SolverOptions.kinematic_curvature` (and of the solver setting)
+KINEMATIC_CURVATURE_MODES = (True, False, "auto")
+
+
+@dataclass
+class CurvatureTrials:
+    """kinematic_curvature "auto": how the linearised runs have fared, shared by the solvers of
+    one solve loop (`SolverOptions.trial_patience`)."""
+
+    failed_in_a_row: int = 0       # solves whose linearised runs all failed, since the last success
+    given_up: bool = False         # linearised runs no longer tried
+
+
+@dataclass
+class SolverOptions:
+    tolerance: float = 1e-6        # max constraint violation accepted as feasible
+    regularisation: float = 1e-2   # rho: weight of the pull towards the start point
+    max_iter: int = 500
+    restarts: int = 2              # extra random restarts after an infeasible verdict: a false
+                                   # "infeasible" would prune feasible plans (Theorem 7.1)
+    noise: float = 0.1             # std of the default start perturbation (x10 on restarts)
+    restart_noise: float = 0.3     # std of the perturbation of the initial guess on odd restarts
+    ipopt: dict = field(default_factory=dict)   # extra nlpsol options ("ipopt.xyz": value)
+    plugin: str = "ipopt"          # casadi nlpsol plugin: "ipopt" or "sqpmethod" (qrqp)
+    time_limit: float | None = None   # wall-clock seconds per ipopt run
+    early_stop: bool | str = "auto"   # ipopt: stop once the real rows hold, or on a stall
+                                   # (_Monitor); "auto": when geometry primitives appear (the
+                                   # Python callback costs ~50 us per iteration, +30 % on toys)
+    stall_iterations: int = 60     # ipopt: stop after this many iterations without 1 % progress
+    hessian: str = "exact"         # ipopt: "exact" or "limited-memory" (L-BFGS: no Hessian
+                                   # construction; on the lab1 full graph with trajectories
+                                   # 3.5 s + 30 s (240 it) vs exact 16-26 s + 26-31 s (90 it))
+    distance_curvature: bool = True   # ipopt's exact Hessian includes the second derivatives
+                                   # of rows querying signed distances; False: they enter the
+                                   # Hessian linearised (`_hessian_function` says why)
+    kinematic_curvature: bool | str = True  # ... and of rows using forward kinematics (`fk`;
+                                   # the solve loop's default is "auto": `SolveOptions`);
+                                   # False: they enter linearised too (Gauss-Newton-like steps,
+                                   # as KOMO takes; `_hessian_function`); "auto": each start is
+                                   # run linearised first and, when that run does not end
+                                   # feasible, again from the same start with the exact Hessian,
+                                   # whose result then stands (`FeasibilitySolver.solve`)
+    assembly: str = "auto"         # "SX" | "MX" | "auto" (MX when geometry primitives appear)
+    cache_size: int = 512          # assembled NLPs kept (LRU) per FeasibilitySolver
+    polish: bool = True            # re-solve an infeasible verdict with rho * 1e-4 from x*
+    polish_below: float = 1e-3     # polish at once (before random restarts) a start that ends
+                                   # this close to feasible: a stall near a solution, which
+                                   # restarts from random points only repeat from farther away
+    final_polish_below: float = math.inf   # polish the best point after the last start when
+                                   # its violation is below this (the solve loop lowers it for
+                                   # a one-start verdict that is confirmed later: there the
+                                   # confirmation polishes)
+    shared_assembly: bool = True   # graphs of one structure share one assembled NLP
+                                   # (`shape_cache`; False: each graph assembles its own)
+    near_start_below: float = 1e-3  # a first start whose rows all hold within this is run by
+                                   # ipopt with a small bound push (`FeasibilitySolver._near`);
+                                   # 0 turns it off
+    trial_patience: int = 2        # kinematic_curvature "auto": after this many solves in a row
+                                   # whose linearised runs all failed, the solvers sharing the
+                                   # record (`CurvatureTrials`: one loop) run only the exact
+                                   # Hessian; 0: never give up
+
+    def nlpsol_options(self) -> dict:
+        if self.plugin == "sqpmethod":
+            opts = {"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
+                                                       "error_on_fail": False},
+                    "print_header": False, "print_iteration": False, "print_status": False,
+                    "print_time": False, "error_on_fail": False, "max_iter": self.max_iter,
+                    "tol_pr": min(1e-8, 0.01 * self.tolerance), "tol_du": 1e-9}
+            opts.update(self.ipopt)
+            return opts
+        if self.plugin != "ipopt":
+            raise UserError(f"unknown nlp solver {self.plugin!r} (use ipopt or sqpmethod)")
+        opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+                "ipopt.max_iter": self.max_iter, "ipopt.tol": 1e-9,
+                "ipopt.constr_viol_tol": min(1e-8, 0.01 * self.tolerance),
+                "ipopt.mu_strategy": "adaptive", "error_on_fail": False,
+                # no multipliers of the parameters, so no `nlp_grad` (a reverse sweep through
+                # every body, unused by the verdict): 0.3 s per Panda full-graph NLP
+                "calc_lam_p": False, "no_nlp_grad": True}
+        if self.time_limit is not None:
+            opts["ipopt.max_wall_time"] = float(self.time_limit)
+        if self.hessian not in ("exact", "limited-memory"):
+            raise UserError(f"unknown Hessian mode {self.hessian!r} (use exact or limited-memory)")
+        opts["ipopt.hessian_approximation"] = self.hessian
+        opts.update(self.ipopt)
+        return opts
