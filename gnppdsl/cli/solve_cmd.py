@@ -59,6 +59,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="after the first solution, look this long (within --time-limit) for "
                              "cheaper logical plans under a cost bound (action costs + a lower bound "
                              "of the objective); the result says whether the cost was proved optimal")
+    parser.add_argument("--batch-conflicts", type=int, default=None, metavar="N",
+                        help="gnpp/rlgp: NLPs per learned conflict spent deciding its renamings onto "
+                             "other objects of the same type (and pairs, e.g. block and arm) that "
+                             "lifting cannot accept; the infeasible ones are learned with it (0: off). "
+                             "Default: the problem's solver setting `batch_conflicts`, else 64")
 
 
 #: seconds the hard alarm (`gnppdsl.interrupt.arm_time_limit`) waits after the loop's own
@@ -102,6 +107,7 @@ def _run(args: argparse.Namespace, start: float) -> int:
                 order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
                 kinematic_curvature=args.kinematic_curvature, planner=args.planner,
                 active_set=args.active_set, optimise=args.optimise, anytime=args.anytime,
+                batch_conflicts=args.batch_conflicts,
             )
             limit = options.time_limit
             left = limit - (time.monotonic() - start)

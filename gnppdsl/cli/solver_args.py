@@ -89,7 +89,7 @@ def check_ranges(args: argparse.Namespace) -> None:
         option = "--instance"
     if instance is not None and setting_problem("seed", instance) is not None:
         raise UserError(f"{option} {instance}: {setting_problem('seed', instance)}")
-    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime"):
+    for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime", "batch_conflicts"):
         value = getattr(args, key, None)
         if value is None:
             continue

@@ -71,6 +71,7 @@ class Lifter:
     object_key: Callable[[str], str]         # geometry identity (`solve.compiled.object_keys`)
     limit: int = 64                          # renamings checked per conflict
     stats: LiftStats = field(default_factory=LiftStats)
+    renamable: dict = field(default_factory=dict)   # last `instances` call: object -> objects it was lifted onto
 
     def __post_init__(self) -> None:
         self._index = {v.name: i for i, v in enumerate(self.task.variables)}
@@ -103,6 +104,7 @@ class Lifter:
                     valid[o].append(c)
                     if inst not in out:
                         out.append(inst)
+        self.renamable = {o: list(v) for o, v in valid.items()}
         movable = [o for o in objs if valid[o]]
         if len(movable) >= 2:                            # then their combinations
             for combo in itertools.product(*[[o] + valid[o] for o in movable]):
@@ -118,6 +120,44 @@ class Lifter:
         self.stats.candidates += checked
         self.stats.instances += len(out) - 1
         return out
+
+    def window(self, states: Sequence[State], factors: Sequence[FactorInstance]
+               ) -> tuple[list[tuple[int, ...]], list[FactorInstance]]:
+        """The plan's states around the conflict of `factors` (L + 3 of them, as `instances`
+        renames) and the factors shifted to start at step 0 of that window."""
+        first = min(f.step for f in factors)
+        last = first + len(to_partial_states(factors)) - 1
+        window = [tuple(s) for s in states[first:min(last + 3, len(states))]]
+        return window, [_shift(f, -first) for f in factors]
+
+    def objects(self, factors: Sequence[FactorInstance]) -> list[str]:
+        """The problem objects a conflict's factors name (bindings, bodies, variables, facts)."""
+        return self._conflict_objects(factors, to_partial_states(factors))
+
+    def image(self, mapping: dict[str, str], window: list[tuple[int, ...]],
+              shifted: Sequence[FactorInstance]) -> tuple[list[FactorInstance], list[tuple[int, ...]]] | None:
+        """π(M) as the factory builds it, *not* checked to be the same NLP as M (the caller
+        solves it: `gnppdsl.conflicts.batch`): for each factor of M the factors of the renamed
+        window with its rule, template, renamed bindings and step. None when one of M's
+        factors has no image (the renamed NLP would lack a constraint of M) or when a
+        generator of the image does not hold in the renamed window. With the image: the renamed
+        window (its states, in which the image is the factory's, for lifting it in turn)."""
+        perm = _complete(mapping)
+        renamed = [self._rename_state(s, perm) for s in window]
+        keys = {(f.rule, f.template, tuple((k, perm.get(o, o)) for k, o in f.bindings), f.step) for f in shifted}
+        wanted = sorted({(r, b, st) for r, _, b, st in keys})
+        image = [f for f in self.factory.rule_factors(renamed, wanted)
+                 if (f.rule, f.template, f.bindings, f.step) in keys]
+        if {(f.rule, f.template, f.bindings, f.step) for f in image} != keys:
+            return None
+        seq = to_partial_states(image)
+        start = min(f.step for f in image)
+        if start + len(seq) > len(renamed):
+            return None
+        derived = [derive(self.factory.task, st) for st in renamed]
+        if not all(p.holds_in(derived[start + l]) for l, p in enumerate(seq)):
+            return None
+        return image, renamed
 
     # ---- internals ---------------------------------------------------------------------
     def _conflict_objects(self, factors: Sequence[FactorInstance], seq: Conflict) -> list[str]:

@@ -480,6 +480,9 @@ class SolverSettings:
     optimise    minimise the domain's `minimize` terms from the first feasible solution (true)
     anytime     seconds to look for cheaper logical plans after the first solution (0: off;
                 `gnppdsl.solve.anytime`)
+    batch_conflicts
+                gnpp: NLPs per learned conflict spent deciding its renamings onto other objects
+                of the same type (`gnppdsl.conflicts.batch`; 0: off)
     """
 
     algorithm: str = "gnpp"
@@ -499,6 +502,7 @@ class SolverSettings:
     planner: str = "auto"
     optimise: bool = True
     anytime: float = 0.0
+    batch_conflicts: int = 64
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -510,7 +514,7 @@ SOLVER_FIELDS: dict[str, type] = {
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
     "order": str, "jit": bool, "distance_curvature": bool,
     "kinematic_curvature": str, "planner": str, "optimise": bool,
-    "anytime": float,
+    "anytime": float, "batch_conflicts": int,
 }
 
 #: accepted ranges of the numeric solver settings and their command-line twins (inclusive).
@@ -520,6 +524,7 @@ SOLVER_FIELDS: dict[str, type] = {
 SETTING_RANGES: dict[str, tuple[float, float]] = {
     "tolerance": (1e-10, 1e-2), "time_limit": (1e-6, 1e7), "seed": (0, 2**32 - 1),
     "waypoints": (2, 10_000), "max_horizon": (1, 10_000), "max_iter": (1, 10_000_000), "anytime": (0, 1e7),
+    "batch_conflicts": (0, 100_000),
 }
 
 

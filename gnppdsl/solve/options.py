@@ -82,6 +82,15 @@ class SolveOptions:
                                      # the factory confirms (same NLP up to renaming objects of
                                      # equal geometry and scene data, `gnppdsl.conflicts.lifting`);
                                      # False: the one instance found (before issue 19)
+    batch_conflicts: int = 64        # gnpp: NLPs per conflict deciding its renamings onto other
+                                     # objects of the same type (pairs too, e.g. block and arm)
+                                     # that lifting cannot accept; the infeasible ones are learned
+                                     # with it (`gnppdsl.conflicts.batch`); 0: off
+    batch_min_factors: int = 200     # ... only for conflicts of plans whose graph-NLP has at least
+                                     # this many factors: a candidate costs about one keyframe's
+                                     # NLP, a loop iteration the whole graph's; on the planar
+                                     # problems (17-120 factors) the batch only added NLPs (p6
+                                     # 10 -> 23), on the Lab families (900+) it saves iterations
     minimise_conflicts: bool = False  # gnpp: drop every fact of a conflict whose factors the
                                      # infeasibility does not need (`gnppdsl.conflicts.minimise`,
                                      # one NLP with restarts per fact)
@@ -96,7 +105,7 @@ class SolveOptions:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
                          "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "kinematic_curvature", "planner",
-                         "optimise", "anytime"):
+                         "optimise", "anytime", "batch_conflicts"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)
@@ -114,7 +123,7 @@ class SolveOptions:
             raise UserError("the time limit must be positive")
         from gnppdsl.ir.model import setting_problem
 
-        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime"):
+        for key in ("tolerance", "time_limit", "seed", "max_horizon", "max_iter", "anytime", "batch_conflicts"):
             value = getattr(self, key, None)        # the ranges of the `solver { }` block
             problem = setting_problem(key, value) if value is not None else None
             if problem is not None:

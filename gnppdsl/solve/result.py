@@ -49,6 +49,7 @@ class Conflict:
     at_step: int = 0                 # absolute step of p_0 in that plan
     named: tuple = ()                # the partial states by name: ((("parent(b1)", "s1"), ...), ...)
     instances: tuple = ()            # lifted: the further symmetric instances (DSL text each)
+    batched: tuple = ()              # batch-learned: renamed instances an NLP found infeasible (DSL text each)
     # not serialised: the infeasible subgraph's factor instances (tests re-solve them)
     subgraph: tuple = field(default=(), repr=False, compare=False)
 
@@ -64,6 +65,7 @@ class Conflict:
             "plan_index": self.plan_index,
             "at_step": self.at_step,
             "instances": list(self.instances),
+            "batched": list(self.batched),
         }
 
 
@@ -110,6 +112,10 @@ class Stats:
     conflicts: int = 0                # conflicts learned (a lifted conflict once)
     conflict_instances: int = 0       # ground instances they forbid (>= conflicts)
     lift_time: float = 0.0            # seconds finding symmetric instances (`conflicts.lifting`)
+    batch_candidates: int = 0         # renamed conflicts decided by an NLP (`conflicts.batch`)
+    batch_learned: int = 0            # ... found infeasible, learned with their conflict
+    batch_cached: int = 0             # renamed conflicts decided without an NLP (earlier verdict, database)
+    batch_time: float = 0.0           # seconds building and solving them
     minimise_checks: int = 0          # NLPs of the fact minimisation (`conflicts.minimise`)
     minimise_time: float = 0.0        # seconds in it
     db_feasible_hits: int = 0

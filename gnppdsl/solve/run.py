@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
+from gnppdsl.conflicts.batch import Batcher, subsumed
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
 from gnppdsl.conflicts.lifting import Lifter
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
@@ -78,6 +79,12 @@ class Run(ReachabilityCosts):
         self.lifter: Lifter | None = None
         if options.lift_conflicts and compiled.object_key is not None:
             self.lifter = Lifter(compiled.factory, self.task, compiled.problem.objects, compiled.object_key)
+        self.batcher: Batcher | None = None
+        self.graph_factors = 0            # factors of the last plan's graph-NLP (`build_graph`)
+        if options.batch_conflicts > 0 and options.algorithm != "oneway" and compiled.object_key is not None:
+            self.batcher = Batcher(self.lifter or Lifter(compiled.factory, self.task, compiled.problem.objects,
+                                                         compiled.object_key),
+                                   options.batch_conflicts)
 
     def say(self, msg: str) -> None:
         if self.progress is not None:
@@ -108,6 +115,7 @@ class Run(ReachabilityCosts):
         t0 = time.perf_counter()
         graph = plan_graph(self.compiled.factory, states)
         self.stats.factory_time += time.perf_counter() - t0
+        self.graph_factors = graph.n_factors       # the batch's gate (`batch_min_factors`)
         return graph
 
     def next_plan(self, enumerate_: bool) -> PlanResult:
@@ -189,8 +197,14 @@ class Run(ReachabilityCosts):
         if self.lifter is not None:
             instances = self.lifter.instances(plan.states, sub_factors)
             self.stats.lift_time += time.perf_counter() - t0
+        batched: list = []
+        if self.batcher is not None and self.graph_factors >= self.options.batch_min_factors:
+            # NLPs, not logic: left out of logic_time / logic_cpu (its own batch_time)
+            t1, c1 = time.perf_counter(), _cpu()
+            batched = self.batch(plan, sub_factors, instances)
+            t0, c0 = t0 + time.perf_counter() - t1, c0 + _cpu() - c1
         known = seq in set(self.planner.conflicts)
-        new = self.planner.add_lifted(instances)
+        new = self.planner.add_lifted(instances + batched)
         if known or not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
@@ -199,12 +213,64 @@ class Run(ReachabilityCosts):
         others = tuple(conflict_str(self.task, s) for s in instances[1:])
         c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
                      relaxation, self.stats.plans, first, named=names_of(self.task, seq),
-                     instances=others, subgraph=tuple(sub_factors))
+                     instances=others, subgraph=tuple(sub_factors),
+                     batched=tuple(conflict_str(self.task, s) for s in batched))
         self.conflicts.append(c)
         self.stats.conflicts += 1
         self.stats.conflict_instances += new
         lifted = f" (+{len(others)} symmetric instances)" if others else ""
+        lifted += f" (+{len(batched)} batch-learned)" if batched else ""
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
+
+    def batch(self, plan: Plan, sub_factors: Sequence[FactorInstance], instances: Sequence) -> list:
+        """The conflict's renamed candidates that are infeasible (`gnppdsl.conflicts.batch`):
+        each renamed subgraph decided by the cache of earlier candidates, the subgraph database
+        (switch g), or one NLP with the solver's restarts (`infeasible`, as a minimised
+        conflict's subgraph is decided), at most `batch_conflicts` NLPs per conflict."""
+        from gnppdsl.nlp.graph import GraphNLP
+
+        assert self.batcher is not None
+        t0 = time.perf_counter()
+        stats, out, solved = self.batcher.stats, [], 0
+        known = [*self.planner.conflicts, *instances]
+        try:
+            lifted = self.lifter.renamable if self.lifter is not None else None
+            for cand in self.batcher.candidates(plan.states, sub_factors, list(plan.names), lifted):
+                if subsumed(cand.conflict, known):
+                    continue                   # forbidden already: nothing to learn
+                feasible = self.batcher.verdicts.get(cand.key)
+                graph = None
+                if feasible is None and self.db is not None:
+                    graph = GraphNLP(list(cand.factors))
+                    answer = self.db.lookup(graph)
+                    feasible = None if answer is None else bool(answer)
+                if feasible is not None:
+                    stats.cached += 1
+                else:
+                    if solved >= self.batcher.budget:
+                        break
+                    solved += 1
+                    stats.candidates += 1
+                    feasible = not self.infeasible(self.new_solver(), cand.factors, self.options.seed)
+                    if self.db is not None:
+                        self.db.add(graph or GraphNLP(list(cand.factors)), feasible,
+                                    None if feasible else names_of(self.task, cand.conflict))
+                self.batcher.verdicts[cand.key] = feasible
+                if not feasible:
+                    # with its symmetric instances (`Lifter`: the same NLP, no solve)
+                    found = [cand.conflict]
+                    if self.lifter is not None:
+                        found = self.lifter.instances(cand.states, cand.factors)
+                    for seq in found:
+                        if not subsumed(seq, known):
+                            out.append(seq)
+                            known.append(seq)
+        finally:
+            stats.time += time.perf_counter() - t0
+            stats.learned += len(out)
+            self.stats.batch_candidates, self.stats.batch_learned = stats.candidates, stats.learned
+            self.stats.batch_cached, self.stats.batch_time = stats.cached, stats.time
+        return out
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.finish_stats()

@@ -1,0 +1,138 @@
+"""Batch-learned conflicts (issue 19): a conflict's renamings that lifting cannot accept, each
+decided by its own NLP.
+
+Why: lifting (`gnppdsl.conflicts.lifting`) accepts a renamed conflict only when the renamed
+subgraph is the same NLP as the infeasible one M, so objects at other places (blocks on a row,
+pads, arms with other bases) are never lifted. On stack_32 the reach conflicts then came one
+per block: `{parent(b2) = table, not moved(b2)} -> {parent(b2) = right_arm}`, then b4, b6, ...,
+each a whole loop iteration (a logical plan, its graph-NLP, Alg. 1's search). Such a renamed
+subgraph is small (typically one keyframe), so deciding it directly is far cheaper than
+waiting for the planner to propose a plan that contains it.
+
+What: for a conflict found on a plan, the candidate renamings π are single renamings of one
+of its objects onto another object of the same declared type (any geometry), then pairs of
+them (e.g. the block and the arm), objects of the plan first, at most `budget` NLPs per
+conflict. For each, the factory builds π(M) (`Lifter.image`: the factors of the renamed plan
+window with M's rules, templates and renamed bindings; the same construction as lifting,
+without the isomorphism test). The caller solves π(M) by the standard of the loop's own
+conflicts -- the solver's restarts, as `Run.infeasible` decides a minimised conflict --
+and learns `to_partial_states(π(M))` only when it stays infeasible.
+
+Soundness (Prop. 7.1): π(M) is a set of factors the factory builds where their generators
+hold, so by factor time-invariance (Property 4.2) every plan containing its partial states
+contains π(M); π(M) was found infeasible by an NLP, as every conflict of the loop is. Nothing is
+assumed about symmetry: a renaming onto a reachable block, a free pad or the other arm gives a
+feasible NLP, and is not learned (its verdict is cached, so the next conflict does not solve
+it again; a feasible verdict is also recorded in the subgraph database with switch g).
+"""
+from __future__ import annotations
+
+import itertools
+import re
+from dataclasses import dataclass, field
+from typing import Iterator, Sequence
+
+from gnppdsl.compile.factors import FactorInstance
+from gnppdsl.compile.sas import PartialState
+from gnppdsl.conflicts.lifting import Lifter, State
+from gnppdsl.conflicts.mapping import to_partial_states
+
+Conflict = tuple[PartialState, ...]
+
+BUDGET = 64
+"""Default NLPs per learned conflict spent on renamed candidates (`SolveOptions.batch_conflicts`)."""
+
+FACTORY_FACTOR = 4
+"""Renamings built with the factory per conflict, at most FACTORY_FACTOR * budget (a renaming
+that is cached, known or has no image costs no NLP but still a factory call)."""
+
+
+@dataclass
+class BatchStats:
+    candidates: int = 0          # renamed subgraphs solved (one NLP each, with restarts)
+    learned: int = 0             # ... of which infeasible: learned with the conflict
+    cached: int = 0              # renamed subgraphs decided without an NLP (cache, database)
+    time: float = 0.0            # seconds building and solving them
+
+
+@dataclass(frozen=True)
+class Candidate:
+    mapping: tuple[tuple[str, str], ...]          # the renaming π (sources -> targets)
+    factors: tuple[FactorInstance, ...]           # π(M), steps from 0
+    states: tuple[tuple[int, ...], ...]           # the renamed plan window π(M) was built on
+    conflict: Conflict                            # to_partial_states(π(M))
+    key: tuple                                    # identity of π(M) for the cache
+
+
+@dataclass
+class Batcher:
+    """The renamed candidates of conflicts in one compiled problem (see the module docstring)."""
+
+    lifter: Lifter
+    budget: int = BUDGET
+    stats: BatchStats = field(default_factory=BatchStats)
+    verdicts: dict = field(default_factory=dict)  # Candidate.key -> feasible (bool)
+
+    def candidates(self, states: Sequence[State], factors: Sequence[FactorInstance],
+                   plan_names: Sequence[str] = (), lifted: dict | None = None) -> Iterator[Candidate]:
+        """The renamed subgraphs of the conflict of `factors` (found on the plan with full states
+        `states` and action names `plan_names`), in order: single renamings before pairs,
+        renamings onto objects that play the renamed object's role in the plan (an argument
+        position of an action: the blocks it picks, not those it stacks onto) first, then onto
+        other objects of the plan, then the rest, each by name. Each with an image (`Lifter.image`) and facts; at most
+        FACTORY_FACTOR * budget factory calls. `lifted`: object -> the objects lifting renamed
+        it onto (`Lifter.renamable`); an object lifted onto every other object of its type is
+        not renamed (the caller lifts each learned candidate, which covers those renamings)."""
+        window, shifted = self.lifter.window(states, factors)
+        types = self.lifter.object_types
+        lifted = lifted or {}
+        objs = [o for o in self.lifter.objects(factors)
+                if not set(c for c in types if c != o and types[c] == types[o]) <= set(lifted.get(o, ()))]
+        roles: dict[str, set] = {}
+        for name in plan_names:
+            head, args = (name[:-1].split("(", 1) + [""])[:2] if name.endswith(")") else (name, "")
+            for i, a in enumerate(x.strip() for x in args.split(",")):
+                roles.setdefault(a, set()).add((head, i))
+
+        def rank(o: str, c: str) -> int:
+            return 0 if roles.get(o, set()) & roles.get(c, set()) else 1 if c in roles else 2
+
+        choices = {o: sorted((c for c in types if c != o and types[c] == types[o]),
+                             key=lambda c: (rank(o, c), _natural(c))) for o in objs}
+        singles = [((o, c),) for o in objs for c in choices[o]]
+        pairs = [((o1, c1), (o2, c2)) for o1, o2 in itertools.combinations(objs, 2)
+                 for c1 in choices[o1] for c2 in choices[o2] if c1 != c2 and c1 != o2 and c2 != o1]
+        pairs.sort(key=lambda m: (sum(rank(o, c) for o, c in m), [_natural(c) for _, c in m]))
+        calls = 0
+        for mapping in itertools.chain(singles, pairs):
+            if calls >= FACTORY_FACTOR * self.budget:
+                return
+            calls += 1
+            built = self.lifter.image(dict(mapping), window, shifted)
+            if built is None:
+                continue
+            image, renamed = built
+            seq = to_partial_states(image)
+            if not any(p.facts for p in seq):
+                continue                          # a sweeping claim: never from a batch
+            key = (seq, frozenset((f.rule, f.template, f.bindings, f.step) for f in image))
+            yield Candidate(mapping, tuple(image), tuple(renamed), seq, key)
+
+
+def subsumed(seq: Conflict, known: Sequence[Conflict]) -> bool:
+    """Does a known conflict K occur inside `seq` (K_j ⊆ seq_{i+j} for some offset i)? Then
+    every plan containing `seq` contains K and is forbidden already: nothing to learn (and no
+    NLP to solve)."""
+    facts = [set(p.facts) for p in seq]
+    for k in known:
+        if len(k) > len(seq):
+            continue
+        for i in range(len(seq) - len(k) + 1):
+            if all(set(p.facts) <= facts[i + j] for j, p in enumerate(k)):
+                return True
+    return False
+
+
+def _natural(name: str) -> tuple:
+    """b2 < b10: digits compared as numbers."""
+    return tuple((0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", name) if t)

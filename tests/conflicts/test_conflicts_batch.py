@@ -1,0 +1,161 @@
+"""Batch-learned conflicts (issue 19, `gnppdsl.conflicts.batch`): a conflict's renamings onto
+objects that lifting cannot accept (other sizes, other places) are decided by their own NLPs and
+learned with it when infeasible -- and never when a plan containing them is feasible.
+
+Oracles independent of the batch code:
+- brute force: every logical plan up to a length, its whole graph-NLP solved from several
+  starts; no batch-learned instance may match a plan found feasible (Prop. 7.1);
+- the NLP solver on hand-built plans: the regions the batch learned are too small for the
+  block, the large one it left out is not;
+- every returned solution passes the independent verification.
+"""
+from __future__ import annotations
+
+import re
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+import gnppdsl
+from gnppdsl.logic.conflict_io import parse_conflicts
+from gnppdsl.logic.planner import IncrementalPlanner
+from gnppdsl.logic.validate import find_sequence, initial_state, successor
+from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+from gnppdsl.solve.active_set import verify
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
+from gnppdsl.solve.plan_graph import plan_graph
+
+PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
+SMALL = {"r1": 0.04, "r2": 0.035, "r3": 0.03}     # half extents: all too small for a disc of radius 0.05
+
+
+def uneven_family(tmp: Path, goal: str = "parent(b1) = t1  parent(b3) = t2") -> Path:
+    """Two targets, each occupied by a blocker (c1, c2) that must be moved first; three small
+    regions of *different* sizes at different places (so no two are the same NLP and lifting
+    cannot rename one onto another), one large region `big` that holds a block, and a side
+    region for both blockers. Goal: b1 in t1, b3 in t2 (N = 8), unless `goal` says otherwise."""
+    shutil.copy(PLANAR / "domain.pntc", tmp / "domain.pntc")
+    scene = [
+        "name: uneven", "dimension: 2", "workspace: [[-1, -1], [1, 1]]", "robots:",
+        "  g: {kind: planar, home: [0, 0, 0], shape: {circle: 0.03}, reach_min: [-1, -1], reach_max: [1, 1]}",
+        "objects:",
+        "  s1: {pose: [-0.5, 0.0, 0.0]}", "  s2: {pose: [-0.5, -0.5, 0.0]}",
+        "  sc1: {pose: [0.5, 0.0, 0.0]}", "  sc2: {pose: [0.5, -0.5, 0.0]}",
+        "  t1: {shape: box, size: [0.14, 0.14, 0.01], pose: [0.5, 0.0, 0.0], half_extent: [0.07, 0.07], static: true}",
+        "  t2: {shape: box, size: [0.14, 0.14, 0.01], pose: [0.5, -0.5, 0.0], half_extent: [0.07, 0.07], static: true}",
+        "  side: {shape: box, size: [0.5, 0.3, 0.01], pose: [0.0, 0.5, 0.0], half_extent: [0.25, 0.15], static: true}",
+        "  big: {shape: box, size: [0.16, 0.16, 0.01], pose: [0.6, 0.6, 0.0], half_extent: [0.08, 0.08], static: true}",
+    ]
+    for i, (r, h) in enumerate(SMALL.items()):
+        scene.append(f"  {r}: {{shape: box, size: [{2 * h}, {2 * h}, 0.01], pose: [{-0.6 + 0.3 * i}, -0.85, 0.0], "
+                     f"half_extent: [{h}, {h}], static: true}}")
+    scene += ["  b1: {shape: {circle: 0.05}, pose: [-0.5, 0.0, 0.0], radius: 0.05}",
+              "  b3: {shape: {circle: 0.05}, pose: [-0.5, -0.5, 0.0], radius: 0.05}",
+              "  c1: {shape: {circle: 0.05}, pose: [0.5, 0.0, 0.0], radius: 0.05}",
+              "  c2: {shape: {circle: 0.05}, pose: [0.5, -0.5, 0.0], radius: 0.05}"]
+    (tmp / "uneven.yaml").write_text("\n".join(scene) + "\n")
+    (tmp / "uneven.pntc").write_text(
+        "problem uneven for planar_blocks\nscene \"uneven.yaml\"\n"
+        f"objects {{ b1, b3, c1, c2 : block  s1, s2, sc1, sc2 : spot  t1, t2, side, big, {', '.join(SMALL)} : region"
+        "  g : gripper }\n"
+        "init { parent(b1) = s1  parent(b3) = s2  parent(c1) = sc1  parent(c2) = sc2  holding(g) = none }\n"
+        f"goal {{ {goal} }}\nsolver {{ max_horizon = 10 }}\n")
+    return tmp / "uneven.pntc"
+
+
+def solve(compiled, **kw):
+    # batch_min_factors=0: the batch also for these small planar graphs (by default it serves
+    # graphs of 200+ factors, where a loop iteration costs far more than its candidates)
+    opts = replace(SolveOptions.from_settings(compiled.problem.settings, jit=False, time_limit=120,
+                                              planner="sequential", batch_min_factors=0), **kw)
+    return solve_compiled(compiled, opts)
+
+
+def feasible_plans(compiled, max_len: int, restarts: int = 3):
+    """Brute force: the state sequences of every plan up to `max_len` whose full graph-NLP the
+    solver finds feasible, and the number of plans checked."""
+    planner = IncrementalPlanner(compiled.task, max_horizon=max_len)
+    out, checked = [], 0
+    while True:
+        res = planner.next_plan(max_horizon=max_len, time_limit=60)
+        if not res.found:
+            return out, checked
+        checked += 1
+        solver = FeasibilitySolver(compiled.geometry, SolverOptions(tolerance=1e-6, restarts=restarts))
+        if solver.solve(plan_graph(compiled.factory, res.plan.states), seed=0).feasible:
+            out.append(res.plan)
+
+
+def place_feasible(compiled, block: str, spot: str, region: str) -> bool:
+    """The NLP solver on the hand-built plan pick(block, g, spot), place(block, g, region)."""
+    task = compiled.task
+    states = [initial_state(task)]
+    for name in (f"pick({block}, g, {spot})", f"place({block}, g, {region})"):
+        states.append(successor(task, states[-1], next(o for o in task.operators if o.name == name)))
+    solver = FeasibilitySolver(compiled.geometry, SolverOptions(tolerance=1e-6, restarts=3))
+    return solver.solve(plan_graph(compiled.factory, states), seed=0).feasible
+
+
+def small_regions_named(texts) -> set[str]:
+    return {r for t in texts for r in SMALL if f"= {r}}}" in t or f"= {r}," in t}
+
+
+def test_small_regions_of_other_sizes_are_learned_in_one_batch(tmp_path):
+    """The first conflict about a small region brings the other small regions with it (their
+    renamed subgraphs are infeasible NLPs), never the large region; without the batch lifting
+    cannot rename the regions (other sizes), so the first such conflict names one region only."""
+    compiled = gnppdsl.load_and_compile(str(uneven_family(tmp_path)))
+    first = {}
+    for budget in (0, 32):
+        r = solve(compiled, batch_conflicts=budget)
+        assert r.status == "solved" and r.stats.N == 8 and verify(compiled, r).ok
+        hit = next(c for c in r.conflicts if small_regions_named([c.text]))
+        first[budget] = small_regions_named([hit.text, *hit.instances, *hit.batched])
+        if budget:
+            assert r.stats.batch_candidates > 0 and r.stats.batch_learned == sum(len(c.batched) for c in r.conflicts)
+            # one block alone fits the large regions (two blocks in `big` do not: a sound instance)
+            assert not [t for c in r.conflicts for t in c.batched if re.search(r"\{parent\(\w+\) = (big|side)\}", t)]
+        else:
+            assert r.stats.batch_candidates == 0 and not any(c.batched for c in r.conflicts)
+    assert len(first[0]) == 1, first            # lifting alone: one region per conflict
+    assert first[32] == set(SMALL), first       # the batch: all three at once
+    # the oracle: the regions are too small for the blocker, the large one is not
+    for region in SMALL:
+        assert not place_feasible(compiled, "c1", "sc1", region)
+    assert place_feasible(compiled, "c1", "sc1", "big")
+
+
+def test_batch_learned_conflicts_never_forbid_a_feasible_plan(tmp_path):
+    """Brute force: the conflicts learned on the family (goal N = 8) against every plan up to
+    length 4 of the family with the goal b1 in t1 alone (the blocker c1 moved to any region
+    first: small, large, side), and those learned on planar p6 against every p6 plan up to
+    length 4. No instance, lifted or batch-learned, may match a plan found feasible."""
+    full = gnppdsl.load_and_compile(str(uneven_family(tmp_path)))
+    short = tmp_path / "short"
+    short.mkdir()
+    short = gnppdsl.load_and_compile(str(uneven_family(short, "parent(b1) = t1")))
+    p6 = gnppdsl.load_and_compile(str(PLANAR / "p6_clutter.pntc"))
+    for learned_on, checked_on, least in ((full, short, 5), (p6, p6, 30)):
+        result = solve(learned_on)
+        assert result.status == "solved" and verify(learned_on, result).ok
+        texts = [t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched)]
+        if learned_on is full:
+            assert any(c.batched for c in result.conflicts)      # something to check
+        seqs = parse_conflicts("\n".join(texts), checked_on.task)
+        feasible, checked = feasible_plans(checked_on, 4)
+        assert checked >= least and feasible, checked
+        for plan in feasible:
+            for seq in seqs:
+                assert find_sequence(plan.states, seq) is None, \
+                    f"conflict {checked_on.task.partial_state_str(seq[0])} forbids the feasible plan {plan.names}"
+
+
+@pytest.mark.parametrize("bad", [-1])
+def test_batch_budget_is_range_checked(bad):
+    from gnppdsl.errors import UserError
+
+    with pytest.raises(UserError):
+        SolveOptions(batch_conflicts=bad).validated()
