@@ -182,10 +182,13 @@ class SubgraphDatabase:
             with conn:
                 for stmt in filter(str.strip, _SCHEMA.split(";")):
                     conn.execute(stmt)
+                # INSERT OR IGNORE, not SELECT-then-INSERT: two processes opening a new file at
+                # once both saw no row under a deferred transaction and the second INSERT failed
+                # with "UNIQUE constraint failed: meta.key"
+                conn.execute("INSERT OR IGNORE INTO meta (key, value) VALUES ('schema_version', ?)",
+                             (str(SCHEMA_VERSION),))
                 row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-                if row is None:
-                    conn.execute("INSERT INTO meta (key, value) VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
-            version = row[0] if row is not None else str(SCHEMA_VERSION)
+            version = row[0]
             if version != str(SCHEMA_VERSION):
                 conn.close()
                 raise UserError(

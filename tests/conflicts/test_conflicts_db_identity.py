@@ -4,7 +4,8 @@
   changes `fingerprint()` / `object_keys()` and no saved entry answers for the edited problem;
 - the hashes are the same in two processes with different hash seeds;
 - two processes writing one database at the same time both finish, the file stays sound and
-  serves both problems afterwards."""
+  serves both problems afterwards;
+- eight processes opening one new file at the same instant all succeed."""
 from __future__ import annotations
 
 import json
@@ -16,6 +17,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from gnppdsl.conflicts.database import SubgraphDatabase
 
 ROOT = Path(__file__).resolve().parents[2]
 PLANAR = ROOT / "examples" / "planar"
@@ -115,3 +118,36 @@ def test_two_processes_write_one_database_at_once(workdir):
     # both problems' records are there: each re-solve is answered from the database
     assert _hits(_solve(workdir, "p3_occupied.pntc", "c.json")) > 0
     assert _hits(_solve(workdir, "p4_pair.pntc", "d.json")) > 0
+
+
+def _open_at_barrier(path: str, barrier, failures) -> None:
+    barrier.wait()
+    try:
+        SubgraphDatabase(path=path, scope="race").close()
+    except Exception as exc:            # noqa: BLE001 -- reported to the parent, which asserts
+        failures.put(repr(exc))
+
+
+def test_processes_opening_a_new_database_at_the_same_instant_all_succeed(tmp_path):
+    """Eight processes released by one barrier open the same new file, ten times over. The
+    header row was once written SELECT-then-INSERT in a deferred transaction: two openers both saw
+    no row and the second INSERT failed with 'UNIQUE constraint failed: meta.key'."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork")
+    failures = ctx.Queue()
+    for trial in range(10):
+        path = str(tmp_path / f"db{trial}.sqlite")
+        barrier = ctx.Barrier(8)
+        procs = [ctx.Process(target=_open_at_barrier, args=(path, barrier, failures)) for _ in range(8)]
+        for p in procs:
+            p.start()
+        for p in procs:
+            p.join(60)
+        assert all(p.exitcode == 0 for p in procs)
+        with sqlite3.connect(path) as conn:
+            assert conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchall() != []
+    errors = []
+    while not failures.empty():
+        errors.append(failures.get())
+    assert errors == []
