@@ -34,7 +34,7 @@ its starts."""
 class PlanEvaluation(Run):
     """A solve that evaluates plans' graph-NLPs (Fig. 3, step 3; see the module docstring)."""
 
-    def evaluate(self, graph: GraphNLP, use_db: bool) -> tuple:
+    def evaluate(self, graph: GraphNLP, use_db: bool, known: dict | None = None) -> tuple:
         """Algorithm 1 on one plan's graph-NLP.
 
         Order "full_first" (default, Fig. 3 step 3): solve the full graph-NLP first; only when it
@@ -48,6 +48,9 @@ class PlanEvaluation(Run):
         feasible iff all its components are), and only an infeasible G_r is searched component
         by component with the double binary search on time and the convergence heuristic
         (`find_infeasible_subgraph`). Same verdicts as Alg. 1.
+        `known`: values of graph's variables from the caller (an active-set round's failed
+        repair, `coverage`): the checker's first values, i.e. warm starts, and a feasible verdict
+        only where numpy finds they satisfy a graph (`known_solution`); never an infeasible one.
         Returns ("solution", values) | ("conflict", factors, relaxation) | ("inconsistent", why).
         """
         from gnppdsl.nlp.feasibility import FeasibilityResult
@@ -56,6 +59,9 @@ class PlanEvaluation(Run):
         sw = self.options.switches
         solver = self.new_solver()
         checker = FeasibilityCheck(self, solver, graph, use_db=use_db)
+        if known:
+            variables = set(graph.variables)
+            checker.values.update({v: x for v, x in known.items() if v in variables})
         rules = [r for r in self.compiled.relaxations if r.dropped] if "r" in sw else []
         levels: list[Level] = []
         full_key = frozenset(graph.factor_refs)
@@ -101,7 +107,7 @@ class PlanEvaluation(Run):
                 if r.feasible:
                     return ("solution", r.values)
                 if use_db:                        # the solver disagrees with the database
-                    return self.evaluate(graph, use_db=False)
+                    return self.evaluate(graph, use_db=False, known=known)
                 return ("inconsistent", "the full graph-NLP failed after a feasible verdict")
             if rule is None and index < len(levels) - 1:
                 x_star = getattr(verdict, "values", None) or None

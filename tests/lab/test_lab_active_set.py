@@ -218,3 +218,44 @@ def test_a_round_of_the_active_set_repairs_the_motions_phase_by_phase(wall, monk
             not any(u in touched for u in graph.variables if u.step == v.step and u.waypoints)]
     moved = [v for v in kept if not np.array_equal(np.asarray(r.values[v]), np.asarray(before[v]))]
     assert kept and not moved, (kept, moved)
+
+
+def test_a_failed_repair_hands_its_keyframes_to_algorithm_1(wall, monkeypatch):
+    """When an active-set round's repair fails, Algorithm 1 on the augmented graph starts from
+    the repair's keyframes (`Coverage.cover` -> `PlanEvaluation.evaluate(known=...)`), not from
+    the initial guess: on lab4_paper (`--batch-conflicts 0`) it otherwise solved the repair's
+    keyframes+motion NLP again from another start. Only values are handed on: no trajectory
+    (its motions are solved again phase by phase) and no verdict. The repair is forced to fail
+    here (run, then reported failed), so Algorithm 1 must find and verify the solution itself."""
+    from gnppdsl.solve.coverage import Coverage
+    from gnppdsl.solve.feasibility_check import FeasibilityCheck
+
+    c, opts = wall
+    real_repair, real_solve = Coverage.repair, FeasibilityCheck.solve
+    repaired: list[dict] = []
+    first: dict[int, dict] = {}       # checker -> its values at its first solve
+
+    def repair(self, check, graph, values):
+        real_repair(self, check, graph, values)
+        repaired.append({v: x for v, x in check.values.items() if not v.waypoints})
+        return False
+
+    def solve(self, g):
+        first.setdefault(id(self), (self, dict(self.values)))
+        return real_solve(self, g)
+
+    monkeypatch.setattr(Coverage, "repair", repair)
+    monkeypatch.setattr(FeasibilityCheck, "solve", solve)
+    fixed = solve_compiled(c, opts)
+    assert fixed.status == "solved", fixed.message
+    assert "active set added" in fixed.message and verify(c, fixed).ok
+    assert repaired and repaired[0]
+    # the checker of Algorithm 1 on the augmented graph (it holds the round's pair factors)
+    seeded = [(chk, vals) for chk, vals in first.values()
+              if any(f.rule == "avoid" for f in chk.graph.factor_instances)]
+    assert seeded, "Algorithm 1 ran on the augmented graph"
+    chk, start = seeded[0]
+    variables = set(chk.graph.variables)
+    expected = {v: x for v, x in repaired[0].items() if v in variables}
+    assert expected and set(start) == set(expected)          # no trajectory handed on
+    assert all(np.array_equal(np.asarray(start[v]), np.asarray(x)) for v, x in expected.items())
