@@ -18,8 +18,9 @@ of Algorithm 1's checker, so a level or graph they satisfy is known feasible by 
 motions are solved again phase by phase, from interpolation). Measured on lab4_paper with
 `--batch-conflicts 0`, seed 0 (the round-1 repair fails at motion 4 after joining motion 2):
 without this, Algorithm 1 started from the initial guess, solved the same keyframes+motion 2
-NLP (same factors, another start, 4.6 s) and needed a second round; with it, 80 -> 68 NLPs,
-29.8 -> 20.7 s CPU, one round, verified.
+NLP again (same factors, another start, 4.6 s) and needed a second round; with it, 80 -> 68
+NLPs, 30.5 -> 23.7 s CPU (loaded machine), one round, verified. (Not a cache of the repair's
+NLPs: Algorithm 1 never built one with the same start, so none would have been reused.)
 
 Why phase by phase and no joint solve of the motions (measured on lab4_paper, 9 steps, two
 Pandas, seed 0): the joint re-solve of the augmented graph (654 factors, every motion's
