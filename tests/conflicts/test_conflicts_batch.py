@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 import shutil
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -20,13 +21,15 @@ import pytest
 
 import gnppdsl
 from gnppdsl.logic.conflict_io import parse_conflicts
-from gnppdsl.logic.planner import IncrementalPlanner
 from gnppdsl.logic.validate import find_sequence, initial_state, successor
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.solve.active_set import verify
 from gnppdsl.solve.loop import solve_compiled
 from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.plan_graph import plan_graph
+
+sys.path.insert(0, str(Path(__file__).parent))
+from plan_brute import feasible_plans  # noqa: E402
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 SMALL = {"r1": 0.04, "r2": 0.035, "r3": 0.03}     # half extents: all too small for a disc of radius 0.05
@@ -72,21 +75,6 @@ def solve(compiled, **kw):
     opts = replace(SolveOptions.from_settings(compiled.problem.settings, jit=False, time_limit=120,
                                               planner="sequential", batch_min_factors=0), **kw)
     return solve_compiled(compiled, opts)
-
-
-def feasible_plans(compiled, max_len: int, restarts: int = 3):
-    """Brute force: the state sequences of every plan up to `max_len` whose full graph-NLP the
-    solver finds feasible, and the number of plans checked."""
-    planner = IncrementalPlanner(compiled.task, max_horizon=max_len)
-    out, checked = [], 0
-    while True:
-        res = planner.next_plan(max_horizon=max_len, time_limit=60)
-        if not res.found:
-            return out, checked
-        checked += 1
-        solver = FeasibilitySolver(compiled.geometry, SolverOptions(tolerance=1e-6, restarts=restarts))
-        if solver.solve(plan_graph(compiled.factory, res.plan.states), seed=0).feasible:
-            out.append(res.plan)
 
 
 def place_feasible(compiled, block: str, spot: str, region: str) -> bool:

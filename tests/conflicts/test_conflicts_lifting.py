@@ -12,6 +12,7 @@ Oracles independent of the lifting and minimisation code:
 from __future__ import annotations
 
 import shutil
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -19,13 +20,15 @@ import pytest
 
 import gnppdsl
 from gnppdsl.logic.conflict_io import parse_conflicts
-from gnppdsl.logic.planner import IncrementalPlanner
 from gnppdsl.logic.validate import find_sequence, initial_state, successor
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.solve.active_set import verify
 from gnppdsl.solve.loop import solve_compiled
 from gnppdsl.solve.options import SolveOptions
 from gnppdsl.solve.plan_graph import plan_graph
+
+sys.path.insert(0, str(Path(__file__).parent))
+from plan_brute import feasible_plans  # noqa: E402
 
 PLANAR = Path(__file__).resolve().parents[2] / "examples" / "planar"
 
@@ -77,21 +80,6 @@ def instances(compiled, result):
     result's texts."""
     text = "\n".join(t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched))
     return parse_conflicts(text, compiled.task)
-
-
-def feasible_plans(compiled, max_len: int, restarts: int = 3):
-    """Brute force: the state sequences of every plan up to `max_len` whose full graph-NLP the
-    solver finds feasible."""
-    planner = IncrementalPlanner(compiled.task, max_horizon=max_len)
-    out, checked = [], 0
-    while True:
-        res = planner.next_plan(max_horizon=max_len, time_limit=60)
-        if not res.found:
-            return out, checked
-        checked += 1
-        solver = FeasibilitySolver(compiled.geometry, SolverOptions(tolerance=1e-6, restarts=restarts))
-        if solver.solve(plan_graph(compiled.factory, res.plan.states), seed=0).feasible:
-            out.append(res.plan)
 
 
 def test_lifted_and_minimised_conflicts_never_forbid_a_feasible_plan():

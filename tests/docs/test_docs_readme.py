@@ -23,14 +23,18 @@ def readme_commands() -> list[str]:
     return [line.split("  #")[0].strip() for line in block.splitlines() if line.startswith("gnpp ")]
 
 
-def _run_all(commands, tmp_path, monkeypatch, capsys):
+def _run_all(commands, tmp_path, monkeypatch, capsys) -> dict[str, str]:
+    """Each command's standard output, after asserting it exited 0."""
     (tmp_path / "examples").symlink_to(ROOT / "examples")
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("BROWSER", "true")
+    outputs = {}
     for cmd in commands:
         code = main(shlex.split(cmd)[1:])
         out = capsys.readouterr()
         assert code == 0, f"`{cmd}` exited {code}:\n{out.out[-1500:]}\n{out.err[-1500:]}"
+        outputs[cmd] = out.out
+    return outputs
 
 
 def test_readme_commands_fast(tmp_path, monkeypatch, capsys):
@@ -42,5 +46,14 @@ def test_readme_commands_fast(tmp_path, monkeypatch, capsys):
 
 
 @pytest.mark.slow
-def test_readme_commands_slow(tmp_path, monkeypatch, capsys):
-    _run_all([c for c in readme_commands() if any(s in c for s in SLOW)], tmp_path, monkeypatch, capsys)
+def test_readme_commands_slow(tmp_path, monkeypatch, capsys, lab1_kernels):
+    """The `--jit` command on the users' JIT path: the conftest's GNPP_JIT=0 (which turns `--jit`
+    off) removed, a kernel cache seeded with lab1's (same domain) so only lab4's own kernels
+    compile; its summary must report kernels run as compiled C."""
+    from shared_solves import copy_cache
+
+    monkeypatch.delenv("GNPP_JIT", raising=False)
+    monkeypatch.setenv("GNPP_JIT_CACHE", str(copy_cache(lab1_kernels, tmp_path / "jit_cache")))
+    outputs = _run_all([c for c in readme_commands() if any(s in c for s in SLOW)], tmp_path, monkeypatch, capsys)
+    jit_runs = [out for cmd, out in outputs.items() if "--jit" in cmd]
+    assert jit_runs and all(re.search(r"jit: [1-9]\d* derivative kernels as compiled C", out) for out in jit_runs), jit_runs
