@@ -34,7 +34,7 @@ from typing import Iterator, Sequence
 
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.compile.sas import PartialState
-from gnppdsl.conflicts.lifting import Lifter, State
+from gnppdsl.conflicts.lifting import Lifter, State, parse_name
 from gnppdsl.conflicts.mapping import to_partial_states
 
 Conflict = tuple[PartialState, ...]
@@ -90,8 +90,8 @@ class Batcher:
                 if not set(c for c in types if c != o and types[c] == types[o]) <= set(lifted.get(o, ()))]
         roles: dict[str, set] = {}
         for name in plan_names:
-            head, args = (name[:-1].split("(", 1) + [""])[:2] if name.endswith(")") else (name, "")
-            for i, a in enumerate(x.strip() for x in args.split(",")):
+            head, args = parse_name(name)
+            for i, a in enumerate(args):
                 roles.setdefault(a, set()).add((head, i))
 
         def rank(o: str, c: str) -> int:
