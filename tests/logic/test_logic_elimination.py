@@ -25,15 +25,22 @@ def _is_subsequence(short, long) -> bool:
     return all(any(o == p for p in it) for o in short)
 
 
+def random_cases(rng: random.Random, n: int, max_conflicts: int):
+    """`n` random tasks with up to `max_conflicts` random conflicts, each with its plans up to
+    length 6 under those conflicts (brute force); tasks without a plan are left out. The caller
+    goes on drawing from the same `rng`."""
+    for _ in range(n):
+        task = random_task(rng, n_ops=6)
+        conflicts = random_conflicts(task, rng, rng.randint(0, max_conflicts), walk_length=5)
+        plans = all_plans(task, 6, conflicts)
+        if plans:
+            yield task, conflicts, plans
+
+
 def test_elimination_against_brute_force_with_conflicts_and_blocked_plans():
     rng = random.Random(19)
     shortened = kept = 0
-    for _ in range(40):
-        task = random_task(rng, n_ops=6)
-        conflicts = random_conflicts(task, rng, rng.randint(0, 3), walk_length=5)
-        plans = all_plans(task, 6, conflicts)
-        if not plans:
-            continue
+    for task, conflicts, plans in random_cases(rng, 40, 3):
         # block some of the short plans: elimination must not shorten into them
         shortest = sorted(plans, key=len)
         blocked = set(rng.sample(shortest[:6], min(len(shortest), rng.randint(0, 3))))
@@ -139,12 +146,7 @@ def test_bounded_searches_find_the_shortest_plan_and_prove_it():
     require_fd()
     rng = random.Random(7)
     checked = 0
-    for _ in range(30):
-        task = random_task(rng, n_ops=6)
-        conflicts = random_conflicts(task, rng, rng.randint(0, 2), walk_length=5)
-        plans = all_plans(task, 6, conflicts)
-        if not plans:
-            continue
+    for task, conflicts, plans in random_cases(rng, 30, 2):
         shortest = min(len(p) for p in plans)
         blocked = [p for p in plans if len(p) == shortest][:1] if rng.random() < 0.5 else []
         allowed = plans - set(blocked)
