@@ -634,3 +634,28 @@ def max_violation(factors: Iterable[FactorInstance], values: Mapping[VarInstance
         if arg is None or v > best:
             best, arg = v, f
     return best, arg
+
+
+def factor_margins(factors: Iterable[FactorInstance], values: Mapping[VarInstance, Any],
+                   geometry: Geometry | None = None) -> list[float]:
+    """Per factor, its largest row value, signed: h for inequality rows (h <= 0 holds, so a
+    negative margin says how far the factor is from becoming active), |h| for equality rows;
+    NaN counts as infinite. Why signed: `gnppdsl.solve.screening` keeps only the collision
+    factors within a distance of becoming active, which `max_violation` (0 for every factor
+    that holds) cannot tell apart. One memo for the whole call, as `max_violation`."""
+    m, token = _start_call(geometry)
+    out: list[float] = []
+    for f in factors:
+        prog, hs = _values_of_rows(f, values, m, token)
+        best = -math.inf
+        for at, eq in ((prog.eq_at, True), (prog.ineq_at, False)):
+            for i in at:
+                h = hs[i]
+                if not h.size:
+                    continue
+                v = float(np.abs(h).max() if eq else h.max())
+                if v != v:
+                    v = math.inf
+                best = max(best, v)
+        out.append(best)
+    return out

@@ -135,8 +135,25 @@ class Coverage(PlanEvaluation):
                 keyframes.update(r.values)
         check.values.update(keyframes)
         r = check.motions_between_keyframes(graph, trajs, {v: values[v] for v in trajs},
-                                            max_joined=REPAIR_JOINED_MOTIONS)
+                                            max_joined=self.repair_joins(graph))
         return r if r is not None and r.feasible else False
+
+    def repair_joins(self, graph: GraphNLP) -> int:
+        """Motions the repair may join with the keyframes: REPAIR_JOINED_MOTIONS, or
+        MAX_JOINED_MOTIONS when the keyframes+motions NLPs are screened (`screening`: at least
+        SCREEN_MIN_FACTORS collision factors). Why: one join was chosen because a join cost a
+        whole keyframe NLP (lab4: 12 s more for the extra joins); screened, it costs a few of
+        its near pairs (stack_16: 3438 factors, 21 s -> 840 factors, 1.3 s), while giving up
+        sends the plan back to Algorithm 1, whose motions then fail between the same keyframes
+        again (stack_16: motion 4 and 5, 7-11 s each, twice)."""
+        from gnppdsl.solve.motions import MAX_JOINED_MOTIONS
+        from gnppdsl.solve import screening
+
+        if self.options.screen_collisions and sum(
+                "collision" in f.tags and not any(v.waypoints for v in f.variables)
+                for f in graph.factor_instances) >= screening.SCREEN_MIN_FACTORS:
+            return max(REPAIR_JOINED_MOTIONS, MAX_JOINED_MOTIONS)
+        return REPAIR_JOINED_MOTIONS
 
 
 __all__ = ["Coverage"]

@@ -21,6 +21,7 @@ from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.inferred_verdicts import InferredVerdicts
 from gnppdsl.solve.interpolation import interpolate_trajectories
 from gnppdsl.solve.motions import TrajectoryPhase
+from gnppdsl.solve.screening import CollisionScreen
 from gnppdsl.solve.options import overridden
 from gnppdsl.solve.plan_graph import TRAJ, is_trajectory
 
@@ -49,7 +50,7 @@ size; session 7 without that second opinion: trusting one start on a 123-factor 
 the search to another conflict, seed 0: 28 NLPs and 157 s instead of 24 NLPs and 37 s)."""
 
 
-class FeasibilityCheck(TrajectoryPhase, Confirmation, InferredVerdicts):
+class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredVerdicts):
     """The feasibility check handed to Algorithm 1 for one plan's graph-NLP.
 
     - switch g: answer from the database of solved subgraphs when it knows (no NLP);
@@ -146,6 +147,10 @@ class FeasibilityCheck(TrajectoryPhase, Confirmation, InferredVerdicts):
                 # level, the largest NLP of the search (Lab 5: 130 factors over 8 steps, 3
                 # starts 8-9 s) and its slices find the conflict anyway (0.4-1 s each).
                 self.unconfirmed.add(key)
+        if r is None:
+            # many collision factors: first with only the near ones (a feasible result only
+            # when numpy finds every factor of g holds; else g is solved whole, below)
+            r = self.screened(g, warm)
         if r is None:
             # ipopt's wall-time limit is fixed when a graph's NLP is assembled: give it what is left
             opts = self.solver.options
@@ -252,6 +257,9 @@ class FeasibilityCheck(TrajectoryPhase, Confirmation, InferredVerdicts):
         # keyframes stall at 1.6e-3 and the polish solves them). The small levels solved
         # before it keep their polish: it is cheap, and their convergence point shapes the
         # conflict search (Lab 4: two more NLPs without it).
+        screened = self.screened(g, warm)      # verified on every factor, or None
+        if screened is not None:
+            return screened
         polish = self.far_polish(g) if g.signature() == self.graph.signature() else {}
         opts.time_limit = max(0.05, run.remaining())
         with overridden(opts, restarts=0, **polish):

@@ -78,6 +78,10 @@ class SolveOptions:
                                      # pairs it found near as factors and is solved again
                                      # (`gnppdsl.solve.coverage`); False: it ends the solve as
                                      # verification_failed (every solution is verified either way)
+    screen_collisions: bool = True   # graphs with many collision factors are solved first with
+                                     # only those near at the start, every factor re-checked with
+                                     # numpy after each NLP (`gnppdsl.solve.screening`); a miss
+                                     # solves the whole graph as before. False: always whole
     lift_conflicts: bool = True      # gnpp: each conflict is learned with every symmetric instance
                                      # the factory confirms (same NLP up to renaming objects of
                                      # equal geometry and scene data, `gnppdsl.conflicts.lifting`);

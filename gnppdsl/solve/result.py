@@ -126,6 +126,8 @@ class Stats:
     reuse_time: float = 0.0           # seconds spent evaluating those
     rechecks_feasible: int = 0        # failed graphs solved on a second try from their slices' solutions
     screened_levels: int = 0          # relaxation levels skipped: nearly hold at the full graph's x*
+    screened_solves: int = 0          # graphs solved with only their near collision factors (`screening`)
+    screened_dropped: int = 0         # collision factors those NLPs left out (checked with numpy)
     inferred_verdicts: int = 0        # infeasible components located at an infeasible graph's x*
     certified_verdicts: int = 0       # infeasible subgraphs certified at a graph's x* (no NLP)
     lazy_retries: int = 0             # Alg. 1 searches repeated with restarts (a one-start verdict was wrong)

@@ -1,0 +1,153 @@
+"""Collision screening (`gnppdsl.solve.screening`): a graph with many collision factors is
+first solved with only those near at its start, and its answer is accepted only when numpy finds
+every factor of the whole graph holds; a screened NLP that fails or whose point breaks a
+dropped factor is no verdict. Also: a motion between fixed keyframes carries no factor whose
+variables are all fixed, with or without idle trajectories (`TrajectoryPhase.solve_motion`).
+On the 1-D toy with trajectories (its `apart` factors are the collisions), the screening
+threshold lowered so that its few collision factors qualify; every solution re-checked."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from gnppdsl.nlp.evaluate import max_violation
+from gnppdsl.nlp.feasibility import FeasibilitySolver
+from gnppdsl.solve import screening
+from gnppdsl.solve.feasibility_check import FeasibilityCheck
+from gnppdsl.solve.loop import solve_compiled
+from gnppdsl.solve.options import SolveOptions
+from solve_checks import check_solution
+from solve_toy import occupied_problem
+
+OPTIONS = SolveOptions(switches="trn", time_limit=60, max_horizon=6, order="staged")
+
+
+def _spy_nlps(monkeypatch) -> list:
+    seen = []
+    real = FeasibilitySolver.solve
+
+    def spy(self, g, *a, **k):
+        r = real(self, g, *a, **k)
+        seen.append((g, r.feasible))
+        return r
+
+    monkeypatch.setattr(FeasibilitySolver, "solve", spy)
+    return seen
+
+
+def _screen_everything(monkeypatch):
+    monkeypatch.setattr(screening, "SCREEN_MIN_FACTORS", 1)
+    monkeypatch.setattr(screening, "SCREEN_KEEP_FRACTION", 1.0)
+
+
+def _spy_screened(monkeypatch) -> list:
+    """(graph, result) of every `screened` call that returned a result."""
+    out = []
+    real = FeasibilityCheck.screened
+
+    def spy(self, g, warm):
+        r = real(self, g, warm)
+        if r is not None:
+            out.append((self, g, r))
+        return r
+
+    monkeypatch.setattr(FeasibilityCheck, "screened", spy)
+    return out
+
+
+def _solved(options=OPTIONS):
+    compiled = occupied_problem(waypoints=4)
+    res = solve_compiled(compiled, options)
+    assert res.solved and res.stats.N == 4, res.message
+    check_solution(compiled, res)
+    return res
+
+
+def test_a_graph_with_many_collision_factors_is_solved_with_the_near_ones_and_verified(monkeypatch):
+    _screen_everything(monkeypatch)
+    seen = _spy_nlps(monkeypatch)
+    answers = _spy_screened(monkeypatch)
+    res = _solved()
+    screened = [g for g, _ in seen if "{screened" in g.name]
+    assert screened and res.stats.screened_solves >= len(screened)
+    assert res.stats.screened_dropped > 0
+    # a screened NLP leaves collision factors out, never anything else
+    for _, g, r in answers:
+        assert r.feasible
+        # the accepted point satisfies every factor of the whole graph (numpy)
+        point = {v: r.values[v] for v in g.variables}
+        assert max_violation(g.factor_instances, point)[0] <= 1e-6
+    assert answers
+
+
+def test_without_screening_no_screened_nlp(monkeypatch):
+    """The counterfactual (it can fail): screen_collisions off, the same solve has none."""
+    _screen_everything(monkeypatch)
+    seen = _spy_nlps(monkeypatch)
+    res = _solved(replace(OPTIONS, screen_collisions=False))
+    assert not [g for g, _ in seen if "{screened" in g.name]
+    assert res.stats.screened_solves == 0
+
+
+def test_a_screened_point_that_breaks_a_dropped_factor_is_not_accepted(monkeypatch):
+    """Every screened NLP returns a 'solution' with the two blocks on top of each other at
+    every step (it breaks the dropped `apart` factors): numpy rejects it each round, so no
+    screened result is returned, the graphs are solved whole, and the solution is valid."""
+    _screen_everything(monkeypatch)
+    real = FeasibilityCheck.screened_solve
+    lies = []
+
+    def lying(self, sub, point):
+        r = real(self, sub, point)
+        if r.feasible:
+            values = dict(r.values)
+            for v in values:
+                if v.kind == "pose" and v.args == ("b2",):
+                    other = next((u for u in values if u.kind == "pose" and u.args == ("b1",) and u.step == v.step),
+                                 None)
+                    if other is not None:
+                        values[v] = np.asarray(values[other]).copy()
+            lies.append(sub.name)
+            r = replace(r, values=values)
+        return r
+
+    monkeypatch.setattr(FeasibilityCheck, "screened_solve", lying)
+    answers = _spy_screened(monkeypatch)
+    _solved()
+    assert lies
+    assert not answers
+
+
+def test_a_failed_screened_nlp_is_no_verdict(monkeypatch):
+    """Every screened NLP 'fails' (a lie): the graphs are solved whole instead, and the solve
+    ends with the same plan, no conflict more than without screening."""
+    _screen_everything(monkeypatch)
+    plain = _solved(replace(OPTIONS, screen_collisions=False))
+    real = FeasibilityCheck.screened_solve
+    failed = []
+
+    def failing(self, sub, point):
+        r = real(self, sub, point)
+        failed.append(sub.name)
+        return replace(r, feasible=False, max_violation=max(r.max_violation, 1.0))
+
+    monkeypatch.setattr(FeasibilityCheck, "screened_solve", failing)
+    res = _solved()
+    assert failed
+    assert res.plan == plain.plan
+    assert len(res.conflicts) == len(plain.conflicts)
+
+
+def test_motions_without_idle_trajectories_carry_no_fixed_factor(monkeypatch):
+    """No trajectory is held idle: each phase NLP still leaves out the factors whose variables
+    are all fixed (its keyframes' own), checked once with numpy instead."""
+    monkeypatch.setattr(FeasibilityCheck, "idle_motions", lambda self, s, i: {})
+    seen = _spy_nlps(monkeypatch)
+    _solved()
+    phases = [g for g, _ in seen if "{motion" in g.name]
+    assert phases
+    for g in phases:
+        for ref in g.factor_refs:
+            assert any(u.lower is None or u.lower != u.upper for u in g.graph.neighbors(ref)), \
+                (g.name, g.factor(ref).label)
