@@ -44,6 +44,7 @@ from gnppdsl.logic.planner import Plan
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.active_set import active_set_of, pair_factors, verify
 from gnppdsl.solve.feasibility_check import FeasibilityCheck
+from gnppdsl.solve.options import overridden
 from gnppdsl.solve.plan_evaluation import PlanEvaluation
 from gnppdsl.solve.plan_graph import TRAJ, is_trajectory
 from gnppdsl.solve.result import SOLVED, UNVERIFIED
@@ -85,9 +86,10 @@ class Coverage(PlanEvaluation):
                                           name=graph.name, initial_guess=graph.initial_guess,
                                           restart_guess=graph.restart_guess)
             check = FeasibilityCheck(self, self.new_solver(), graph, use_db=False)
-            r = self.repair(check, graph, values)
-            if r is None:              # no motions to repair phase by phase: one joint solve
-                r = check.local_solve(graph, warm=values)
+            with overridden(check, screen=True):     # a solution's start (`screening`)
+                r = self.repair(check, graph, values)
+                if r is None:          # no motions to repair phase by phase: one joint solve
+                    r = check.local_solve(graph, warm=values)
             if r is not False and r.feasible:
                 values = {**values, **r.values}
                 continue

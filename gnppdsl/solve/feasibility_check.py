@@ -103,7 +103,10 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
                     and modes.signature() not in self.results
                 # never lazy: g takes this verdict as its own, and g's key is not marked
                 # unconfirmed (`confirm` would pass a one-start verdict on)
-                with overridden(self.solver.options, **local), overridden(self, lazy=False, lazy_large=False):
+                # the plan's own keyframes may be screened (`screening`): their start solves
+                # every factor but the collisions (the relaxations before them)
+                with overridden(self.solver.options, **local), \
+                        overridden(self, lazy=False, lazy_large=False, screen=bool(local)):
                     r0 = self.solve(modes)
                 if one_start and not r0.feasible and r0.starts > 0:
                     # ... but the verdict of `local`'s one start is unconfirmed: the search can

@@ -17,6 +17,7 @@ from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.check_memory import CheckMemory
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.interpolation import keyframe_of, straight_line
+from gnppdsl.solve.options import overridden
 
 if TYPE_CHECKING:  # pragma: no cover  (casadi)
     from gnppdsl.nlp.feasibility import FeasibilityResult
@@ -169,7 +170,8 @@ class TrajectoryPhase(CheckMemory):
                        suffix="{keyframes+motions " + ",".join(map(str, phases)) + "}")
         start = {v: warm[v] for v in m.variables if v in warm}
         start.update({v: self.values[v] for v in m.variables if v in self.values and not v.waypoints})
-        return self.local_solve(m, start)
+        with overridden(self, screen=True):          # solved keyframes and one motion (`screening`)
+            return self.local_solve(m, start)
 
     def idle_motions(self, s: GraphNLP, i: int) -> dict[VarInstance, np.ndarray]:
         """The trajectories of phase i whose keyframes at i and i+1 are equal up to IDLE_MOTION

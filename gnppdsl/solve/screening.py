@@ -53,7 +53,18 @@ SCREEN_ROUNDS = 4
 
 
 class CollisionScreen(CheckMemory):
-    """`screened`: the feasibility check's collision screening (see the module docstring)."""
+    """`screened`: the feasibility check's collision screening (see the module docstring).
+
+    Only where the caller sets `screen` (with `overridden`): the plan's own keyframes after its
+    relaxations (`FeasibilityCheck.solve`), the keyframes joined with a motion
+    (`keyframes_with_motions`) and the active set's repair (`coverage`) -- starts that solve all
+    but (some of) the collisions. Why not every graph: Algorithm 1's levels and slices are
+    solved to find a conflict, mostly infeasible, where a screened NLP only adds a failed run
+    and moves the convergence points the search goes on from (clutter_4 with every graph
+    screened: a screened no_robot_time_traj level of the first, infeasible plan failed and
+    was solved whole; the solve took longer than without screening)."""
+
+    screen = False                       # set around the solves that may be screened
 
     def screened(self, g: GraphNLP, warm: dict) -> FeasibilityResult | None:
         """A feasible result of g from NLPs with only its near collision factors, verified on
@@ -63,7 +74,7 @@ class CollisionScreen(CheckMemory):
         from gnppdsl.nlp.feasibility import FeasibilityResult
 
         run = self.run
-        if not run.options.screen_collisions:
+        if not (self.screen and run.options.screen_collisions):
             return None
         refs = g.factor_refs
         collision = [r for r in refs if "collision" in g.factor(r).tags]
