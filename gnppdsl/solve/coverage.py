@@ -53,6 +53,11 @@ from gnppdsl.solve.result import SOLVED, UNVERIFIED
 REPAIR_JOINED_MOTIONS = 1
 """Motions `Coverage.repair` joins with the keyframes before it gives up (module docstring)."""
 
+SCREEN_MAX_PAIRS = 200
+"""An active-set round adding at most this many pair factors has its repair screened
+(`screening`; stack_16: 28 pairs, its join 21 -> 1.3 s); more (clutter_4: ~2000) are all
+near and kept, where screening only added NLP runs (clutter_4 103 -> 264 s CPU)."""
+
 
 class Coverage(PlanEvaluation):
     """A solve whose solutions are verified and covered by the active set."""
@@ -86,7 +91,10 @@ class Coverage(PlanEvaluation):
                                           name=graph.name, initial_guess=graph.initial_guess,
                                           restart_guess=graph.restart_guess)
             check = FeasibilityCheck(self, self.new_solver(), graph, use_db=False)
-            with overridden(check, screen=True):     # a solution's start (`screening`)
+            # a solution's start, screened (`screening`) when the round added few pairs: its
+            # pairs are near by construction, so with many (clutter_4: 1670-2351 in round 1,
+            # every one kept) a screened NLP is as large as the whole and only adds a run
+            with overridden(check, screen=len(new) < SCREEN_MAX_PAIRS):
                 r = self.repair(check, graph, values)
                 if r is None:          # no motions to repair phase by phase: one joint solve
                     r = check.local_solve(graph, warm=values)
@@ -137,7 +145,8 @@ class Coverage(PlanEvaluation):
                 keyframes.update(r.values)
         check.values.update(keyframes)
         r = check.motions_between_keyframes(graph, trajs, {v: values[v] for v in trajs},
-                                            max_joined=self.repair_joins(graph))
+                                            max_joined=self.repair_joins(graph) if check.screen
+                                            else REPAIR_JOINED_MOTIONS)
         return r if r is not None and r.feasible else False
 
     def repair_joins(self, graph: GraphNLP) -> int:
