@@ -159,6 +159,26 @@ def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -
     return ca.Function(name, m, [open_f(*m, stop_f(*m))])
 
 
+def sx_jacobian(out, X, others: list) -> Any:
+    """d out / d X as an SX expression (X a vertcat of symbols, `others` the remaining symbols
+    `out` depends on), by forward or by reverse AD, whichever gives the shorter graph. Why not
+    `ca.jacobian`: casadi chooses the mode from the sparsity colouring alone and takes forward
+    mode for the Panda bodies of one configuration (7 joints, 6-8 dense rows), whose reverse
+    sweeps are 1.4-1.9x shorter, while on others forward mode is the shorter one (the keyframe
+    NLP of `benchmarks/bench_komo.py`, SX instructions casadi's choice -> this: panda
+    clear_gripper 9733 -> 5194, self_clear 7696 -> 4468, grasp 12197 -> 7089, kin_switch_rel
+    4325 -> 3346; its whole constraint Jacobian ~98k -> ~68k, run by casadi's virtual machine
+    at ~6 ns per instruction every ipopt iteration). Both are built, once per compiled body:
+    ~5-15 ms per Panda body."""
+    best = None
+    for w in (0.0, 1.0):
+        F = ca.Function("h", [X, *others], [out], {"ad_weight": w, "ad_weight_sp": w})
+        J = F.factory("J", F.name_in(), ["jac:o0:i0"])
+        if best is None or J.n_instructions() < best.n_instructions():
+            best = J
+    return best(X, *others)
+
+
 def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
     """(x_0, ..., p) -> dh/dX by differentiating the whole body at once (reference for the
     grouped assembly; used for bodies without repeated constraints)."""
@@ -166,7 +186,7 @@ def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Func
     slots, p = _symbols(cb)
     X = ca.vertcat(*slots)
     out, O, Ov = _open_rows(cb, slots, p)
-    return _closed(F.name() + "_jac", [*slots, p], O, Ov, ca.jacobian(out, X), native)
+    return _closed(F.name() + "_jac", [*slots, p], O, Ov, sx_jacobian(out, X, [p, O]), native)
 
 
 def direct_hessian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
@@ -244,15 +264,15 @@ class BodyCompiler:
         fn = None
         if (pts or slots) and h.numel():
             X = ca.vertcat(*pts, *slots)
-            if hessian:
-                lam = ca.SX.sym("lam", h.numel())
-                D = ca.hessian(ca.dot(lam, h), X)[0]
-            else:
-                D = ca.jacobian(h, X)
             # derivatives with the stop-gradient symbols held constant, then their values
             # (evaluated only: the fast twins)
             O, Ov = ((ca.vertcat(*[o for o, _ in builder.stops]), ca.vertcat(*builder.fast_stops))
                      if builder.stops else (ca.SX(0, 1), ca.SX(0, 1)))
+            if hessian:
+                lam = ca.SX.sym("lam", h.numel())
+                D = ca.hessian(ca.dot(lam, h), X)[0]
+            else:
+                D = sx_jacobian(h, X, [p, O])
             ins = [*pts, *slots, p, lam] if hessian else [*pts, *slots, p]
             fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D, self._native)
         self._reps[key] = fn
