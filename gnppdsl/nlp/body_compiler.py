@@ -160,23 +160,25 @@ def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -
 
 
 def sx_jacobian(out, X, others: list) -> Any:
-    """d out / d X as an SX expression (X a vertcat of symbols, `others` the remaining symbols
-    `out` depends on), by forward or by reverse AD, whichever gives the shorter graph. Why not
-    `ca.jacobian`: casadi chooses the mode from the sparsity colouring alone and takes forward
-    mode for the Panda bodies of one configuration (7 joints, 6-8 dense rows), whose reverse
-    sweeps are 1.4-1.9x shorter, while on others forward mode is the shorter one (the keyframe
-    NLP of `benchmarks/bench_komo.py`, SX instructions casadi's choice -> this: panda
-    clear_gripper 9733 -> 5194, self_clear 7696 -> 4468, grasp 12197 -> 7089, kin_switch_rel
-    4325 -> 3346; its whole constraint Jacobian ~98k -> ~68k, run by casadi's virtual machine
-    at ~6 ns per instruction every ipopt iteration). Both are built, once per compiled body:
-    ~5-15 ms per Panda body."""
-    best = None
-    for w in (0.0, 1.0):
-        F = ca.Function("h", [X, *others], [out], {"ad_weight": w, "ad_weight_sp": w})
-        J = F.factory("J", F.name_in(), ["jac:o0:i0"])
-        if best is None or J.n_instructions() < best.n_instructions():
-            best = J
-    return best(X, *others)
+    """d out / d X as an SX expression (X a vertcat of symbols, `others` the other symbols `out`
+    depends on), by forward or by reverse AD, whichever gives the shorter graph. Why not
+    `ca.jacobian`'s own choice: casadi picks the mode from the sparsity colouring with forward
+    sweeps weighted cheaper, and so takes forward mode for most Panda bodies, whose reverse
+    sweeps give a 1.4-2x shorter graph, while for others forward mode is the shorter one
+    (SX instructions of lab1's templates, casadi's choice -> this: panda clear_gripper 9733 ->
+    5194, self_clear 7696 -> 4468, grasp 12197 -> 7089, clear_arms 71330 -> 36088,
+    kin_switch_rel 4325 -> 3346; `benchmarks/bench_komo.py`'s keyframe NLP: its constraint
+    Jacobian 584 -> 408 us a call, run every ipopt iteration by casadi's virtual machine).
+    Both are built, once per compiled body (`BodyCompiler.jacobian`): about twice
+    `ca.jacobian`'s build time (lab1's Panda bodies 0.07 -> 0.18 s)."""
+    others = [o for o in others if o.numel()]
+    best, size = None, None
+    for w in (1.0, 0.0):
+        J = ca.jacobian(out, X, {"helper_options": {"ad_weight": w, "ad_weight_sp": w}})
+        n = ca.Function("J", [X, *others], [J]).n_instructions()
+        if best is None or n < size:
+            best, size = J, n
+    return best
 
 
 def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
