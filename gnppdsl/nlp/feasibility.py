@@ -539,7 +539,15 @@ class FeasibilitySolver:
 
         With `kinematic_curvature` off, templates that use forward kinematics (`fk`) are left
         out as well (KOMO's Gauss-Newton model; measurements and why it is not the Lab's
-        setting in docs/design.md, "Linearised kinematics")."""
+        setting in docs/design.md, "Linearised kinematics").
+
+        In that linearised model the unit-quaternion rows (|q|^2 - 1 = 0) keep their curvature
+        only where it is convex: 2 max(lam, 0) on the quaternion's diagonal instead of 2 lam.
+        Why: a negative multiplier made the Hessian indefinite, and ipopt corrected the inertia
+        (extra factorisations, a damped step) in a third of the iterations; measured on
+        `bench_komo.py`'s keyframe NLP (12 seeds, the block's SE3 poses): 370 -> 306 ipopt
+        iterations in all, median 43.8 -> 38.1 ms CPU per solve, same verdicts (dropping the term
+        altogether: 313 iterations, keeping |lam|: 331). The exact Hessian keeps 2 lam."""
         z = ca.MX.sym("x", n_z)
         pp = ca.MX.sym("p", n + n_par + 1)
         lam_f = ca.MX.sym("lam_f")
@@ -576,6 +584,9 @@ class FeasibilitySolver:
         base += n
         if quat_idx:
             lam_q = lam_g[n_g - len(quat_idx) // 4:]
+            if not self.kinematic_exact:
+                # the model's convex part only (see the docstring)
+                lam_q = ca.fmax(lam_q, 0)
             parts.append(2 * ca.repmat(lam_q.T, 4, 1)[:])
             entries += [(a, a, base + m) for m, a in enumerate(quat_idx)]
             base += len(quat_idx)
