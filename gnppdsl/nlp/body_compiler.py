@@ -161,17 +161,22 @@ def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -
 
 def sx_jacobian(out, X, others: list) -> Any:
     """d out / d X as an SX expression (X a vertcat of symbols, `others` the other symbols `out`
-    depends on), by forward or by reverse AD, whichever gives the shorter graph. Why not
-    `ca.jacobian`'s own choice: casadi picks the mode from the sparsity colouring with forward
-    sweeps weighted cheaper, and so takes forward mode for most Panda bodies, whose reverse
-    sweeps give a 1.4-2x shorter graph, while for others forward mode is the shorter one
-    (SX instructions of lab1's templates, casadi's choice -> this: panda clear_gripper 9733 ->
-    5194, self_clear 7696 -> 4468, grasp 12197 -> 7089, clear_arms 71330 -> 36088,
-    kin_switch_rel 4325 -> 3346; `benchmarks/bench_komo.py`'s keyframe NLP: its constraint
-    Jacobian 584 -> 408 us a call, run every ipopt iteration by casadi's virtual machine).
-    Both are built, once per compiled body (`BodyCompiler.jacobian`): about twice
-    `ca.jacobian`'s build time (lab1's Panda bodies 0.07 -> 0.18 s)."""
+    depends on): by reverse AD when `out` has at most as many rows as X has entries, else by
+    forward or reverse AD, whichever gives the shorter graph. Why not `ca.jacobian`'s own
+    choice: casadi picks the mode from the sparsity colouring with forward sweeps weighted
+    cheaper, and so takes forward mode for most Panda bodies, whose reverse sweeps give a
+    1.4-2x shorter graph (SX instructions of lab1's templates, casadi's choice -> this: panda
+    clear_gripper 9733 -> 5194, self_clear 7696 -> 4468, grasp 12197 -> 7089, clear_arms
+    71330 -> 36088 (34 rows of 14 entries: both built); in all 155k -> 107k;
+    `benchmarks/bench_komo.py`'s keyframe NLP: its constraint Jacobian ~584 -> ~410 us a call,
+    run every ipopt iteration by casadi's virtual machine). Build time of lab1's Panda
+    Jacobians 0.07 -> 0.14 s (both modes for every body: 0.22 s, for 2 % fewer instructions)."""
     others = [o for o in others if o.numel()]
+    if out.numel() <= X.numel():
+        # no more reverse sweeps than forward ones: reverse mode, one build (on lab1's bodies
+        # of this shape never longer than casadi's choice; kin_switch_rel's forward graph is
+        # 23 % shorter still)
+        return ca.jacobian(out, X, {"helper_options": {"ad_weight": 1.0, "ad_weight_sp": 1.0}})
     best, size = None, None
     for w in (1.0, 0.0):
         J = ca.jacobian(out, X, {"helper_options": {"ad_weight": w, "ad_weight_sp": w}})

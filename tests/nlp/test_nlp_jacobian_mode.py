@@ -1,8 +1,9 @@
-"""`body_compiler.sx_jacobian`: each template's constraint Jacobian by forward or reverse AD,
-whichever gives the shorter SX graph, instead of casadi's own choice (`ca.jacobian`, which
-picks forward mode for a Panda body of one configuration although reverse mode is 1.4-1.9x
-shorter there). The Jacobians must be the same functions: on the Lab's Panda templates, at
-random points, entry by entry and in sparsity, equal to `ca.jacobian`'s, and shorter in total."""
+"""`body_compiler.sx_jacobian`: each template's constraint Jacobian by reverse AD when it has at
+most as many rows as inputs, else by the shorter of forward and reverse AD, instead of casadi's
+own choice (`ca.jacobian`, which picks forward mode for most Panda bodies although reverse mode
+is 1.4-2x shorter there). The Jacobians must be the same functions: on the Lab's Panda
+templates, at random points, entry by entry and in sparsity, equal to `ca.jacobian`'s, and
+shorter in total."""
 from __future__ import annotations
 
 from pathlib import Path
