@@ -30,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance
+from gnppdsl.nlp.function_store import FunctionStore
 from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Geometry
 from gnppdsl.nlp.lowering import (BodyError, BodyLowering, RowGroup, SlotSignature, constraint_rows,
                                   lift_constants, row_groups, structure_key, uses)
@@ -186,10 +187,14 @@ class BodyCompiler:
     Why a class: it owns the cache and the injected geometry, and lives as long as a solve loop
     so that every template is compiled once across all the graph-NLPs of the loop."""
 
-    def __init__(self, geometry: Geometry | None = None, kernels: Any = None):
+    def __init__(self, geometry: Geometry | None = None, kernels: Any = None, store: Any = "default"):
         """`kernels`: a `gnppdsl.nlp.jit.KernelCache` to run the large derivative kernels as
-        compiled code (None: casadi's virtual machine)."""
+        compiled code (None: casadi's virtual machine). `store`: a
+        `gnppdsl.nlp.function_store.FunctionStore` of built bodies persisted across processes
+        ("default": `FunctionStore.default()`, None: build every body)."""
         self.geometry = geometry
+        self.store = FunctionStore.default() if store == "default" else store
+        self.loaded = 0             # of `compiled`, how many came from the store
         self.kernels = kernels
         self._native = kernels.native if kernels is not None else None
         self._cache: dict[tuple, CompiledBody] = {}
@@ -384,8 +389,64 @@ class BodyCompiler:
 
     def _build(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...],
                n_params: int) -> CompiledBody:
+        """The body's Functions, from the store when it holds them (`function_store`), else
+        built (`_lower`) and stored."""
         prims = uses(body, set(GEOMETRY_PRIMITIVES))
         mx = self.geometry is not None and any(self.geometry.needs_mx(p) for p in prims)
+        open_stops = not mx and hasattr(self.geometry, "sdist_parts")
+        key = None
+        if self.store is not None and not mx:
+            key = self.store.key(self.geometry, name, body, sigs, n_params, open_stops)
+            payload = self.store.load(key) if key is not None else None
+            if payload is not None:
+                try:
+                    cb = self._from_store(name, sigs, n_params, payload)
+                except Exception:          # a payload this geometry cannot attach: rebuild
+                    cb = None
+                if cb is not None:
+                    self.loaded += 1
+                    return cb
+        cb, stored = self._lower(name, body, sigs, n_params, prims, mx)
+        if key is not None and stored is not None:
+            self.store.save(key, stored)
+        return cb
+
+    def _from_store(self, name: str, sigs: tuple[SlotSignature, ...], n_params: int,
+                    payload: dict) -> CompiledBody:
+        """A stored body's CompiledBody: the serialized open Function called on fresh
+        symbols, its distance queries attached again from the live geometry, the same
+        substitutions as `_lower` (equal graphs, `tests/nlp/test_nlp_function_store.py`)."""
+        g = self.geometry
+        fname = _fname(name)
+        F = ca.Function.deserialize(payload["function"])
+        meta = (tuple(payload["kinds"]), n_params, "SX", frozenset(payload["primitives"]),
+                tuple(payload["groups"]))
+        if not payload["stops"]:
+            return CompiledBody(F, *meta)
+        slots = [ca.SX.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
+        p = ca.SX.sym("p", n_params)
+        O = ca.SX.sym("o", F.size1_in(len(slots) + 1))
+        out, A = F(*slots, p, O)
+        Ov, fast, lo = [], [], 0
+        for a, b, planar in payload["stops"]:
+            cbf = g.sdist_parts(a, b, planar)[0]
+            x = A[lo:lo + cbf.size1_in(0)]
+            lo += cbf.size1_in(0)
+            Ov.append(cbf(x))
+            fast.append((g.witness_fast(a, b, planar) if hasattr(g, "witness_fast") else cbf)(x))
+        if lo != A.numel():
+            raise ValueError("stored distance queries do not match the geometry's")
+        Ov, fast = ca.vertcat(*Ov), ca.vertcat(*fast)
+        open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
+        stops = ca.Function(fname + "_stops", [*slots, p], [fast])
+        evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
+        f = ca.Function(fname, [*slots, p], [ca.substitute(out, O, Ov)])
+        return CompiledBody(f, *meta, open_f, stops, evaluate)
+
+    def _lower(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...], n_params: int,
+               prims: set, mx: bool) -> tuple[CompiledBody, dict | None]:
+        """(the body lowered to casadi, the payload to store or None when it cannot be
+        serialized: MX bodies, distance queries embedded without `sdist_parts`)."""
         S = ca.MX if mx else ca.SX
         slots = [S.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
         p = S.sym("p", n_params)
@@ -399,6 +460,7 @@ class BodyCompiler:
         out = ca.vertcat(*rows) if rows else S(0, 1)
         fname = _fname(name)
         open_f = stops = evaluate = None
+        open_out = out
         if builder.stops:
             O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
             open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
@@ -410,5 +472,17 @@ class BodyCompiler:
             out = ca.substitute(out, O, Ov)
         f = ca.Function(fname, [*slots, p], [out])
         groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
-        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
-                            groups, open_f, stops, evaluate)
+        cb = CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
+                          groups, open_f, stops, evaluate)
+        stored = None
+        if not mx and self.store is not None:
+            try:
+                # the open rows and the queries' inputs in one graph (shared chains)
+                stored_f = f if open_f is None else ca.Function(
+                    fname + "_stored", [*slots, p, O], [open_out, ca.vertcat(*builder.stop_inputs)])
+                stored = {"function": stored_f.serialize(), "kinds": list(kinds),
+                          "primitives": sorted(prims), "groups": groups,
+                          "stops": list(builder.stop_bodies) if open_f is not None else []}
+            except Exception:          # e.g. a callback embedded in the graph: not stored
+                stored = None
+        return cb, stored
