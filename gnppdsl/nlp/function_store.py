@@ -28,9 +28,11 @@ Where: `GNPP_FUNCTION_CACHE` (a directory; `0` or `off`: no store), else
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import os
 import pickle
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -72,25 +74,17 @@ def default_directory() -> Path | None:
     return Path(base) / "gnppdsl" / "functions"
 
 
-def _names(body: Any) -> set[str]:
-    """The object and robot names a (lifted) body refers to."""
-    from gnppdsl.ir.expr import Obj
-    out: set[str] = set()
+_OBJ = re.compile(r"""Obj\(name=('(?:[^'\\]|\\.)*'|"(?:[^"\\]|\\.)*")\)""")
 
-    def walk(e: Any) -> None:
-        if isinstance(e, Obj):
-            out.add(e.name)
-            return
-        if isinstance(e, (tuple, list)):
-            for x in e:
-                walk(x)
-            return
-        fields = getattr(e, "__dataclass_fields__", None)
-        if fields:
-            for k in fields:
-                walk(getattr(e, k))
-    walk(body)
-    return out
+
+def _names(text: str) -> set[str] | None:
+    """The object and robot names in the repr of a (lifted) body (`ir.expr.Obj` nodes; one
+    regular expression over the text the key hashes anyway, instead of a walk of the body);
+    None when some `Obj(` is not matched (then the body is not stored)."""
+    found = _OBJ.findall(text)
+    if len(found) != text.count("Obj("):
+        return None
+    return {ast.literal_eval(x) for x in found}
 
 
 class FunctionStore:
@@ -126,15 +120,19 @@ class FunctionStore:
     def key(self, geometry: Any, template: str, key_body: tuple, sigs: tuple, n_params: int,
             open_stops: bool) -> str | None:
         """The store key of one body to build (module docstring), or None (not storable)."""
+        body_text = repr(key_body)
+        names = _names(body_text)
+        if names is None:
+            return None
         fps = []
-        for n in sorted(_names(key_body)):
+        for n in sorted(names):
             fp = self.geometry_fingerprint(geometry, n)
             if fp is None:
                 return None
             fps.append(f"{n}={fp}")
         if geometry is None:
             fps.append("no geometry")
-        text = "\n".join([code_version(), template, repr(key_body), repr(sigs), str(n_params),
+        text = "\n".join([code_version(), template, body_text, repr(sigs), str(n_params),
                           f"open_stops={open_stops}", *fps])
         if " at 0x" in text:
             return None

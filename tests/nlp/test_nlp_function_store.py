@@ -129,3 +129,11 @@ def test_the_store_is_off_with_gnpp_function_cache_0(monkeypatch, tmp_path):
     assert FunctionStore.default() is None and BodyCompiler(None).store is None
     monkeypatch.setenv("GNPP_FUNCTION_CACHE", str(tmp_path))
     assert FunctionStore.default().directory == tmp_path
+
+
+def test_every_object_name_of_a_body_is_found_for_its_key():
+    from gnppdsl.ir.expr import Call, Obj, Str
+    body = (Call("fk", (Obj("left_arm"), Str("x"))), Obj("b1"), Obj("o'k"), Obj('a"b\'c'))
+    assert function_store._names(repr(body)) == {"left_arm", "b1", "o'k", 'a"b\'c'}
+    # a text whose objects cannot all be read is not keyed (nothing stored)
+    assert function_store._names(repr(body) + " Obj(") is None
