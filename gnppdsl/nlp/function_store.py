@@ -23,8 +23,10 @@ version: every source file of the package and the casadi, pinocchio and Python
 versions. A change to any of them is a new key; an unreadable or corrupt file is a miss.
 
 Where: `GNPP_FUNCTION_CACHE` (a directory; `0` or `off`: no store), else
-`$XDG_CACHE_HOME/gnppdsl/functions` (default `~/.cache/...`). Files are written atomically
-(a temporary file renamed into place), so concurrent processes never read half a file.
+`$XDG_CACHE_HOME/gnppdsl/functions` (default `~/.cache/...`), one subdirectory per code
+version (the stores of versions unused for KEEP_DAYS are removed by the next process that
+writes). Files are written atomically (a temporary file renamed into place), so concurrent
+processes never read half a file. Size: ~30 MB for the Lab problems' templates.
 """
 from __future__ import annotations
 
@@ -40,6 +42,11 @@ from typing import Any
 
 FORMAT = 1
 """Version of the stored payload's layout (part of every key)."""
+
+KEEP_DAYS = 7.0
+"""Days a store of another code version is kept after its last write (`FunctionStore.prune`)."""
+
+_VERSION_DIR = re.compile(r"[0-9a-f]{16}")
 
 _CODE_VERSION: str | None = None
 
@@ -140,7 +147,29 @@ class FunctionStore:
 
     # -- files --------------------------------------------------------------------------------
     def _path(self, key: str) -> Path:
-        return self.directory / key[:2] / f"{key}.pkl"
+        return self.directory / code_version()[:16] / key[:2] / f"{key}.pkl"
+
+    def prune(self, max_age_days: float = KEEP_DAYS) -> int:
+        """Remove the stores of other code versions not written for `max_age_days` (every
+        code change starts a new one; a checkout used now and then keeps its own). Returns the
+        number of version directories removed."""
+        import shutil
+        import time
+        mine, removed = code_version()[:16], 0
+        try:
+            entries = list(self.directory.iterdir())
+        except OSError:
+            return 0
+        for d in entries:
+            if d.name == mine or not _VERSION_DIR.fullmatch(d.name) or not d.is_dir():
+                continue
+            try:
+                if time.time() - d.stat().st_mtime > max_age_days * 86400:
+                    shutil.rmtree(d)
+                    removed += 1
+            except OSError:
+                pass
+        return removed
 
     def load(self, key: str) -> dict | None:
         """The payload stored under `key`, or None (absent, unreadable or of another format)."""
@@ -156,6 +185,11 @@ class FunctionStore:
         if not isinstance(payload, dict) or payload.get("format") != FORMAT or payload.get("key") != key:
             self.misses += 1
             return None
+        if not self.hits:                      # once per process: the version is in use
+            try:
+                os.utime(self._path(key).parent.parent)
+            except OSError:
+                pass
         self.hits += 1
         return payload
 
@@ -163,6 +197,10 @@ class FunctionStore:
         """Store `payload` under `key` (atomically); False when the directory is not writable."""
         path = self._path(key)
         try:
+            if not self.written:               # once per process: the version directory's
+                path.parent.parent.mkdir(parents=True, exist_ok=True)   # mtime is its last use
+                os.utime(path.parent.parent)
+                self.prune()
             path.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pkl")
             try:

@@ -137,3 +137,19 @@ def test_every_object_name_of_a_body_is_found_for_its_key():
     assert function_store._names(repr(body)) == {"left_arm", "b1", "o'k", 'a"b\'c'}
     # a text whose objects cannot all be read is not keyed (nothing stored)
     assert function_store._names(repr(body) + " Obj(") is None
+
+
+def test_stores_of_other_code_versions_unused_for_a_week_are_removed(tmp_path):
+    import os
+    import time
+    store = FunctionStore(tmp_path)
+    old, recent, other = tmp_path / ("a" * 16), tmp_path / ("b" * 16), tmp_path / "not-a-version"
+    for d in (old, recent, other):
+        (d / "00").mkdir(parents=True)
+    week = time.time() - 8 * 86400
+    os.utime(old, (week, week))
+    os.utime(other, (week, week))
+    assert store.save("ff" + "0" * 62, {"function": ""})        # the first write prunes
+    assert not old.exists() and recent.exists() and other.exists()
+    mine = tmp_path / function_store.code_version()[:16]
+    assert (mine / "ff").is_dir()
