@@ -23,7 +23,7 @@ assembly (`gnppdsl.nlp.feasibility`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any, Callable
 
 import casadi as ca
@@ -31,7 +31,8 @@ import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.nlp.function_store import FunctionStore
-from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Geometry
+from gnppdsl.ir.expr import Obj
+from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Body, Geometry
 from gnppdsl.nlp.lowering import (BodyError, BodyLowering, RowGroup, SlotSignature, constraint_rows,
                                   lift_constants, row_groups, structure_key, uses)
 
@@ -110,6 +111,20 @@ def _split(v, fn: ca.Function, n: int) -> list:
         out.append(v[lo:lo + d])
         lo += d
     return out
+
+
+def _renamed(e: Any, m: dict[str, str]) -> Any:
+    """`e` (row groups, distance-query bodies: tuples, lists and frozen dataclasses of the
+    expression tree) with every object name n replaced by m[n] (KeyError: a name outside m)."""
+    if isinstance(e, Obj):
+        return Obj(m[e.name], span=e.span)
+    if isinstance(e, Body):
+        return Body(m[e.name], link=e.link)
+    if isinstance(e, (tuple, list)):
+        return type(e)(_renamed(x, m) for x in e)
+    if is_dataclass(e) and not isinstance(e, type):
+        return replace(e, **{f.name: _renamed(getattr(e, f.name), m) for f in fields(e) if f.init})
+    return e
 
 
 @dataclass(frozen=True)
@@ -372,43 +387,78 @@ class BodyCompiler:
     def _compile(self, factor: FactorInstance, sigs: tuple) -> tuple[CompiledBody, np.ndarray]:
         # object and robot names by what their geometry depends on (`structure_key`): bodies
         # that differ only in the name of a same-shaped block share one Function
-        skey, params = structure_key(factor.body, self._structure_of)
+        names: list[str] = []           # the objects named, in the walk's order
+
+        def rename(name: str) -> Any:
+            names.append(name)
+            return self._structure_of(name)
+
+        skey, params = structure_key(factor.body, rename)
         key = (factor.template, skey, sigs)
         cb = self._cache.get(key)
         if cb is None:
-            key_body, lifted = lift_constants(factor.body)
-            if lifted != params:      # the Function's parameters must be the key's
-                raise RuntimeError(f"{factor.label}: structure_key and lift_constants disagree")
-            try:
-                cb = self._build(factor.template, key_body, sigs, len(params))
-            except BodyError as err:
-                raise BodyError(f"{factor.label}: {err}") from None
+            # from the store, keyed by the same structure (no lifting, no lowering)
+            store_key = None
+            if self.store is not None:
+                store_key = self.store.key(self.geometry, factor.template, skey, names, sigs,
+                                           len(params), hasattr(self.geometry, "sdist_parts"))
+                cb = self._stored(factor.template, sigs, len(params), store_key, names)
+            if cb is None:
+                key_body, lifted = lift_constants(factor.body)
+                if lifted != params:      # the Function's parameters must be the key's
+                    raise RuntimeError(f"{factor.label}: structure_key and lift_constants disagree")
+                try:
+                    cb = self._build(factor.template, key_body, sigs, len(params), store_key, names)
+                except BodyError as err:
+                    raise BodyError(f"{factor.label}: {err}") from None
             self._cache[key] = cb
             self.compiled += 1
         return cb, np.asarray(params, dtype=float)
 
+    def _stored(self, name: str, sigs: tuple[SlotSignature, ...], n_params: int,
+                store_key: str | None, names: list[str]) -> CompiledBody | None:
+        """The body stored under `store_key`, or None (absent, or not attachable here).
+
+        The key holds the body's structure, in which objects are their geometry's structure
+        (as in the in-memory cache), so a body stored for other objects of the same structure
+        (another problem's blocks, the other arm of the same model) is found too: the stored
+        body's object names (`names` of the process that stored it, in the order of
+        `structure_key`'s walk) are mapped to this body's, position by position, and its
+        distance queries and row groups are renamed accordingly; a map that would send one
+        name to two is a miss."""
+        payload = self.store.load(store_key) if store_key is not None else None
+        if payload is None:
+            return None
+        g = self.geometry
+        if g is not None and any(g.needs_mx(p) for p in payload["primitives"]):
+            return None                    # stored as SX, an MX body here: built instead
+        stored = payload["names"]
+        if len(stored) != len(names):
+            return None
+        m: dict[str, str] = {}
+        for a, b in zip(stored, names):
+            if m.setdefault(a, b) != b:
+                return None
+        try:
+            if any(a != b for a, b in m.items()):
+                payload = {**payload, "groups": _renamed(payload["groups"], m),
+                           "stops": _renamed(payload["stops"], m)}
+            cb = self._from_store(name, sigs, n_params, payload)
+        except Exception:                  # a payload this geometry cannot attach: rebuild
+            return None
+        self.loaded += 1
+        return cb
+
     def _build(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...],
-               n_params: int) -> CompiledBody:
-        """The body's Functions, from the store when it holds them (`function_store`), else
-        built (`_lower`) and stored."""
+               n_params: int, store_key: str | None = None, names: list[str] = ()) -> CompiledBody:
+        """The body lowered to casadi Functions (`_lower`), and stored under `store_key`
+        with its object `names` (`_stored`; not MX bodies, nor graphs with an embedded
+        callback)."""
         prims = uses(body, set(GEOMETRY_PRIMITIVES))
         mx = self.geometry is not None and any(self.geometry.needs_mx(p) for p in prims)
-        open_stops = not mx and hasattr(self.geometry, "sdist_parts")
-        key = None
-        if self.store is not None and not mx:
-            key = self.store.key(self.geometry, name, body, sigs, n_params, open_stops)
-            payload = self.store.load(key) if key is not None else None
-            if payload is not None:
-                try:
-                    cb = self._from_store(name, sigs, n_params, payload)
-                except Exception:          # a payload this geometry cannot attach: rebuild
-                    cb = None
-                if cb is not None:
-                    self.loaded += 1
-                    return cb
         cb, stored = self._lower(name, body, sigs, n_params, prims, mx)
-        if key is not None and stored is not None:
-            self.store.save(key, stored)
+        if store_key is not None and stored is not None:
+            self.store.save(store_key, {**stored, "names": list(names)})
         return cb
 
     def _from_store(self, name: str, sigs: tuple[SlotSignature, ...], n_params: int,

@@ -14,8 +14,9 @@ outputs as a plain input and a their inputs, and the queries are attached again 
 the live geometry (`BodyCompiler._from_store`), so h equals the fresh Function's graph.
 
 Never stale: the key is a SHA-256 of everything the built Function depends on: the template
-name, the body with its constants lifted (`lowering.lift_constants`: the same structure the
-in-memory cache keys by, here with the object names), the slots' signatures, the number of
+name, the body's structure with its constants lifted (`lowering.structure_key`: what the
+in-memory cache keys by, objects by their geometry's structure, so that another problem's
+same-shaped blocks find the stored body), the slots' signatures, the number of
 parameters, per robot or object the body names its geometry (the geometry's `persist_key`:
 the scene's structure key, the URDF / SRDF contents, the reduced pinocchio model's
 serialization, the geometry's settings; a geometry without one is never stored), and the code
@@ -30,7 +31,6 @@ processes never read half a file. Size: ~30 MB for the Lab problems' templates.
 """
 from __future__ import annotations
 
-import ast
 import hashlib
 import os
 import pickle
@@ -81,19 +81,6 @@ def default_directory() -> Path | None:
     return Path(base) / "gnppdsl" / "functions"
 
 
-_OBJ = re.compile(r"""Obj\(name=('(?:[^'\\]|\\.)*'|"(?:[^"\\]|\\.)*")\)""")
-
-
-def _names(text: str) -> set[str] | None:
-    """The object and robot names in the repr of a (lifted) body (`ir.expr.Obj` nodes; one
-    regular expression over the text the key hashes anyway, instead of a walk of the body);
-    None when some `Obj(` is not matched (then the body is not stored)."""
-    found = _OBJ.findall(text)
-    if len(found) != text.count("Obj("):
-        return None
-    return {ast.literal_eval(x) for x in found}
-
-
 class FunctionStore:
     """The on-disk store of built template Functions (module docstring)."""
 
@@ -124,24 +111,23 @@ class FunctionStore:
             hit = self._geo[k] = f"{type(geometry).__module__}.{type(geometry).__qualname__}:{fn(name)}"
         return hit
 
-    def key(self, geometry: Any, template: str, key_body: tuple, sigs: tuple, n_params: int,
-            open_stops: bool) -> str | None:
-        """The store key of one body to build (module docstring), or None (not storable)."""
-        body_text = repr(key_body)
-        names = _names(body_text)
-        if names is None:
-            return None
-        fps = []
-        for n in sorted(names):
+    def key(self, geometry: Any, template: str, structure: Any, names: Any, sigs: tuple,
+            n_params: int, open_stops: bool) -> str | None:
+        """The store key of one body (module docstring), or None (not storable): `structure`
+        the body's structure with its constants lifted (`lowering.structure_key`, whose
+        objects are keyed by their geometry's structure), `names` the objects and robots it
+        names, whose geometry's `persist_key` joins the key (not the names: a body stored for
+        other objects of the same structure is renamed at load, `BodyCompiler._stored`)."""
+        fps = set()
+        for n in set(names):
             fp = self.geometry_fingerprint(geometry, n)
             if fp is None:
                 return None
-            fps.append(f"{n}={fp}")
-        if geometry is None:
-            fps.append("no geometry")
-        text = "\n".join([code_version(), template, body_text, repr(sigs), str(n_params),
+            fps.add(fp)
+        fps = sorted(fps) + (["no geometry"] if geometry is None else [])
+        text = "\n".join([code_version(), template, repr(structure), repr(sigs), str(n_params),
                           f"open_stops={open_stops}", *fps])
-        if " at 0x" in text:
+        if " at 0x" in text:                   # an object without a value repr: not a key
             return None
         return hashlib.sha256(text.encode()).hexdigest()
 
