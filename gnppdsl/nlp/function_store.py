@@ -77,8 +77,13 @@ def default_directory() -> Path | None:
     env = os.environ.get("GNPP_FUNCTION_CACHE")
     if env is not None:
         return None if env.strip().lower() in ("", "0", "off", "no", "false") else Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "gnppdsl" / "functions"
+    base = os.environ.get("XDG_CACHE_HOME")
+    if base:
+        return Path(base) / "gnppdsl" / "functions"
+    try:
+        return Path.home() / ".cache" / "gnppdsl" / "functions"
+    except RuntimeError:           # no home directory (HOME unset, no passwd entry)
+        return Path(tempfile.gettempdir()) / "gnppdsl-functions"
 
 
 class FunctionStore:
