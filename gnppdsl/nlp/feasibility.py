@@ -493,13 +493,14 @@ class FeasibilitySolver:
             slots, Pg = _mapped_inputs(x, P, cb, k, stacked, p0)
             fn = jf if k == 1 else jf.map(k, "serial")
             parts.append(fn(*slots, Pg).nz[:])
-            rr, cc = sp.get_triplet()
+            rr, cc = (np.asarray(v, dtype=np.int64) for v in sp.get_triplet())
             nnz = sp.nnz()
-            for t in range(k):
-                st = stacked[t]
-                for e, (i, j) in enumerate(zip(rr, cc)):
-                    entries.append((int(h_rows[r0 + t * cb.n_rows + i]), st[j], base + t * nnz + e))
+            t = np.arange(k, dtype=np.int64)[:, None]       # instances x entries, in that order
+            entries.append(np.stack([h_rows[r0 + t * cb.n_rows + rr[None, :]],
+                                     np.asarray(stacked, dtype=np.int64)[:, cc],
+                                     base + t * nnz + np.arange(nnz)[None, :]], axis=-1).reshape(-1, 3))
             base += k * nnz
+        chunks, entries = entries, []
         consts = []
         for i in range(n_in):
             entries.append((i, n + i, base + len(consts)))
@@ -517,7 +518,8 @@ class FeasibilitySolver:
             entries += [(n_in + n_eq + m // 4, a, base + m) for m, a in enumerate(quat_idx)]
             base += len(quat_idx)
         n_g = n_in + n_eq + len(quat_idx) // 4
-        J = _scatter_parts(n_g, n_z, entries, parts)
+        J = _scatter_parts(n_g, n_z, np.concatenate(
+            [*chunks, np.array(entries, dtype=np.int64).reshape(-1, 3)]), parts)
         return ca.Function("nlp_jac_g", [z, pp], [ca.MX.zeros(n_g, 1), J], ["x", "p"], ["g", "jac_g_x"])
 
     def _hessian_function(self, layout: list, n: int, n_z: int, n_par: int, h_rows: np.ndarray,
@@ -569,18 +571,17 @@ class FeasibilitySolver:
             fn = hf if k == 1 else hf.map(k, "serial")
             Hk = fn(*slots, Pg, Lg)
             parts.append(Hk.nz[:])
-            rr, cc = sp.get_triplet()
+            rr, cc = (np.asarray(v, dtype=np.int64) for v in sp.get_triplet())
             nnz = sp.nnz()
-            for t in range(k):
-                st = stacked[t]
-                for e, (i, j) in enumerate(zip(rr, cc)):
-                    a, b = st[i], st[j]
-                    if a <= b:
-                        entries.append((a, b, base + t * nnz + e))
+            st = np.asarray(stacked, dtype=np.int64)
+            t = np.arange(k, dtype=np.int64)[:, None]       # instances x entries, in that order
+            ab = np.stack([st[:, rr], st[:, cc], base + t * nnz + np.arange(nnz)[None, :]],
+                          axis=-1).reshape(-1, 3)
+            entries.append(ab[ab[:, 0] <= ab[:, 1]])       # the upper triangle
             base += k * nnz
         # pull towards the start (pseudo-Huber) and unit quaternions: diagonal terms
         parts.append(lam_f * rho * (1 + (x - x0) ** 2) ** (-1.5))
-        entries += [(i, i, base + i) for i in range(n)]
+        chunks, entries = entries, [(i, i, base + i) for i in range(n)]
         base += n
         if quat_idx:
             lam_q = lam_g[n_g - len(quat_idx) // 4:]
@@ -590,7 +591,8 @@ class FeasibilitySolver:
             parts.append(2 * ca.repmat(lam_q.T, 4, 1)[:])
             entries += [(a, a, base + m) for m, a in enumerate(quat_idx)]
             base += len(quat_idx)
-        H = _scatter_parts(n_z, n_z, entries, parts)
+        H = _scatter_parts(n_z, n_z, np.concatenate(
+            [*chunks, np.array(entries, dtype=np.int64).reshape(-1, 3)]), parts)
         return ca.Function("nlp_hess_l", [z, pp, lam_f, lam_g], [H],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
 
