@@ -55,10 +55,12 @@ SCREEN_ROUNDS = 4
 class CollisionScreen(CheckMemory):
     """`screened`: the feasibility check's collision screening (see the module docstring).
 
-    Only where the caller sets `screen` (with `overridden`): the plan's own keyframes after its
-    relaxations (`FeasibilityCheck.solve`), the keyframes joined with a motion
-    (`keyframes_with_motions`) and the active set's repair (`coverage`) -- starts that solve all
-    but (some of) the collisions. Why not every graph: Algorithm 1's levels and slices are
+    Only where the caller sets `screen` (with `overridden`): the keyframes joined with a motion
+    (`keyframes_with_motions`) and the active set's repair of a round with few pairs
+    (`coverage`) -- starts that solve all but (some of) the collisions. Not the plan's own
+    keyframes after its relaxations: on clutter_4 that run took 264 s CPU against 103 (its
+    last plan's screened keyframes led to 2351 active-set pairs instead of 1670); on stack_32
+    the screened keyframes stall (docs/design.md). Why not every graph: Algorithm 1's levels and slices are
     solved to find a conflict, mostly infeasible, where a screened NLP only adds a failed run
     and moves the convergence points the search goes on from (clutter_4 with every graph
     screened: a screened no_robot_time_traj level of the first, infeasible plan failed and
