@@ -24,8 +24,7 @@ earlier pick or put, its home before the first), turned to face the target (the 
 along the base's x axis, as the Panda's home does). The NLP enforces the real clearances; the
 placement only decides the side. Nearest the home base instead (before), a put after a pick
 on the far side of the table got a restart base on the side nearest home, away from where the
-base stood; the bench regression that followed the placements was of that kind (sort_random
-instance 7, R-LGP: base 2.04 -> 3.59 m, docs/design.md).
+base stood.
 """
 from __future__ import annotations
 
