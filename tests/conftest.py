@@ -73,6 +73,12 @@ os.environ.setdefault("GNPP_JIT", "0")
 # Nor do they start the background build of the native distance library (gnppdsl.geometry.native):
 # `make setup` builds it, and tests/geometry/test_geometry_native.py builds it when it is missing.
 os.environ.setdefault("GNPP_NATIVE_BUILD", "0")
+# The template Functions persisted across processes (gnppdsl.nlp.function_store) go to one
+# temporary directory per test session, not to the user's cache; tests/nlp/test_nlp_function_store.py
+# builds its stores in their own directories.
+if "GNPP_FUNCTION_CACHE" not in os.environ:
+    import tempfile
+    os.environ["GNPP_FUNCTION_CACHE"] = tempfile.mkdtemp(prefix="gnpp-functions-")
 
 
 # ---- solves shared by several slow tests (tests/shared_solves.py), once per session ----------

@@ -145,6 +145,33 @@ class GeometryContext:
             return ("object", o.shape)
         return ("name", name)
 
+    def persist_key(self, name: str) -> str:
+        """A digest of everything the symbolic geometry of `name` depends on, for keys that
+        outlive the process (`gnppdsl.nlp.function_store`): `structure_key`, the far field,
+        and for a robot the URDF and SRDF contents, its reduced pinocchio model (serialized),
+        coordinates and root placement. Why more than `structure_key`: that names the robot's
+        files, and a file edited between two processes must give another key."""
+        import hashlib
+
+        def digest(path: Any) -> str:
+            if not path:
+                return "-"
+            try:
+                with open(path, "rb") as fh:
+                    return hashlib.sha256(fh.read()).hexdigest()
+            except OSError:
+                return f"unreadable {path}"
+
+        parts = [repr(self.structure_key(name)), repr(self.far_field)]
+        spec = self.scene.robots.get(name)
+        if spec is not None:
+            parts += [digest(spec.urdf), digest(spec.srdf)]
+            r = self.models.get(name)
+            if r is not None:
+                parts += [hashlib.sha256(r.model.saveToString().encode()).hexdigest(),
+                          repr(r.coords), np.asarray(r.base, float).tobytes().hex(), repr(r.nc)]
+        return hashlib.sha256("\n".join(parts).encode()).hexdigest()
+
     # -- protocol: symbolic ---------------------------------------------------------------------
     def needs_mx(self, primitive: str) -> bool:
         """Nothing needs MX: casadi embeds the coal callback in SX graphs as a call node."""

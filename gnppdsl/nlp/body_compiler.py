@@ -23,14 +23,16 @@ assembly (`gnppdsl.nlp.feasibility`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance
-from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Geometry
+from gnppdsl.nlp.function_store import FunctionStore
+from gnppdsl.ir.expr import Obj
+from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Body, Geometry
 from gnppdsl.nlp.lowering import (BodyError, BodyLowering, RowGroup, SlotSignature, constraint_rows,
                                   lift_constants, row_groups, structure_key, uses)
 
@@ -111,6 +113,20 @@ def _split(v, fn: ca.Function, n: int) -> list:
     return out
 
 
+def _renamed(e: Any, m: dict[str, str]) -> Any:
+    """`e` (row groups, distance-query bodies: tuples, lists and frozen dataclasses of the
+    expression tree) with every object name n replaced by m[n] (KeyError: a name outside m)."""
+    if isinstance(e, Obj):
+        return Obj(m[e.name], span=e.span)
+    if isinstance(e, Body):
+        return Body(m[e.name], link=e.link)
+    if isinstance(e, (tuple, list)):
+        return type(e)(_renamed(x, m) for x in e)
+    if is_dataclass(e) and not isinstance(e, type):
+        return replace(e, **{f.name: _renamed(getattr(e, f.name), m) for f in fields(e) if f.init})
+    return e
+
+
 @dataclass(frozen=True)
 class _Named:
     """An object name replaced by its geometry's structure key (cache keys only)."""
@@ -159,6 +175,33 @@ def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -
     return ca.Function(name, m, [open_f(*m, stop_f(*m))])
 
 
+def sx_jacobian(out, X, others: list) -> Any:
+    """d out / d X as an SX expression (X a vertcat of symbols, `others` the other symbols `out`
+    depends on): by reverse AD when `out` has at most as many rows as X has entries, else by
+    forward or reverse AD, whichever gives the shorter graph. Why not `ca.jacobian`'s own
+    choice: casadi picks the mode from the sparsity colouring with forward sweeps weighted
+    cheaper, and so takes forward mode for most Panda bodies, whose reverse sweeps give a
+    1.4-2x shorter graph (SX instructions of lab1's templates, casadi's choice -> this: panda
+    clear_gripper 9733 -> 5194, self_clear 7696 -> 4468, grasp 12197 -> 7089, clear_arms
+    71330 -> 36088 (34 rows of 14 entries: both built); in all 155k -> 107k;
+    `benchmarks/bench_komo.py`'s keyframe NLP: its constraint Jacobian ~584 -> ~410 us a call,
+    run every ipopt iteration by casadi's virtual machine). Build time of lab1's Panda
+    Jacobians 0.07 -> 0.14 s (both modes for every body: 0.22 s, for 2 % fewer instructions)."""
+    others = [o for o in others if o.numel()]
+    if out.numel() <= X.numel():
+        # no more reverse sweeps than forward ones: reverse mode, one build (on lab1's bodies
+        # of this shape never longer than casadi's choice; kin_switch_rel's forward graph is
+        # 23 % shorter still)
+        return ca.jacobian(out, X, {"helper_options": {"ad_weight": 1.0, "ad_weight_sp": 1.0}})
+    best, size = None, None
+    for w in (1.0, 0.0):
+        J = ca.jacobian(out, X, {"helper_options": {"ad_weight": w, "ad_weight_sp": w}})
+        n = ca.Function("J", [X, *others], [J]).n_instructions()
+        if best is None or n < size:
+            best, size = J, n
+    return best
+
+
 def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
     """(x_0, ..., p) -> dh/dX by differentiating the whole body at once (reference for the
     grouped assembly; used for bodies without repeated constraints)."""
@@ -166,7 +209,7 @@ def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Func
     slots, p = _symbols(cb)
     X = ca.vertcat(*slots)
     out, O, Ov = _open_rows(cb, slots, p)
-    return _closed(F.name() + "_jac", [*slots, p], O, Ov, ca.jacobian(out, X), native)
+    return _closed(F.name() + "_jac", [*slots, p], O, Ov, sx_jacobian(out, X, [p, O]), native)
 
 
 def direct_hessian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
@@ -186,10 +229,14 @@ class BodyCompiler:
     Why a class: it owns the cache and the injected geometry, and lives as long as a solve loop
     so that every template is compiled once across all the graph-NLPs of the loop."""
 
-    def __init__(self, geometry: Geometry | None = None, kernels: Any = None):
+    def __init__(self, geometry: Geometry | None = None, kernels: Any = None, store: Any = "default"):
         """`kernels`: a `gnppdsl.nlp.jit.KernelCache` to run the large derivative kernels as
-        compiled code (None: casadi's virtual machine)."""
+        compiled code (None: casadi's virtual machine). `store`: a
+        `gnppdsl.nlp.function_store.FunctionStore` of built bodies persisted across processes
+        ("default": `FunctionStore.default()`, None: build every body)."""
         self.geometry = geometry
+        self.store = FunctionStore.default() if store == "default" else store
+        self.loaded = 0             # of `compiled`, how many came from the store
         self.kernels = kernels
         self._native = kernels.native if kernels is not None else None
         self._cache: dict[tuple, CompiledBody] = {}
@@ -244,15 +291,15 @@ class BodyCompiler:
         fn = None
         if (pts or slots) and h.numel():
             X = ca.vertcat(*pts, *slots)
-            if hessian:
-                lam = ca.SX.sym("lam", h.numel())
-                D = ca.hessian(ca.dot(lam, h), X)[0]
-            else:
-                D = ca.jacobian(h, X)
             # derivatives with the stop-gradient symbols held constant, then their values
             # (evaluated only: the fast twins)
             O, Ov = ((ca.vertcat(*[o for o, _ in builder.stops]), ca.vertcat(*builder.fast_stops))
                      if builder.stops else (ca.SX(0, 1), ca.SX(0, 1)))
+            if hessian:
+                lam = ca.SX.sym("lam", h.numel())
+                D = ca.hessian(ca.dot(lam, h), X)[0]
+            else:
+                D = sx_jacobian(h, X, [p, O])
             ins = [*pts, *slots, p, lam] if hessian else [*pts, *slots, p]
             fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D, self._native)
         self._reps[key] = fn
@@ -367,25 +414,116 @@ class BodyCompiler:
     def _compile(self, factor: FactorInstance, sigs: tuple) -> tuple[CompiledBody, np.ndarray]:
         # object and robot names by what their geometry depends on (`structure_key`): bodies
         # that differ only in the name of a same-shaped block share one Function
-        skey, params = structure_key(factor.body, self._structure_of)
+        names: list[str] = []           # the objects named, in the walk's order
+
+        def rename(name: str) -> Any:
+            names.append(name)
+            return self._structure_of(name)
+
+        skey, params = structure_key(factor.body, rename)
         key = (factor.template, skey, sigs)
         cb = self._cache.get(key)
         if cb is None:
-            key_body, lifted = lift_constants(factor.body)
-            if lifted != params:      # the Function's parameters must be the key's
-                raise RuntimeError(f"{factor.label}: structure_key and lift_constants disagree")
-            try:
-                cb = self._build(factor.template, key_body, sigs, len(params))
-            except BodyError as err:
-                raise BodyError(f"{factor.label}: {err}") from None
+            # from the store, keyed by the same structure (no lifting, no lowering)
+            store_key = None
+            if self.store is not None:
+                store_key = self.store.key(self.geometry, factor.template, skey, names, sigs,
+                                           len(params), hasattr(self.geometry, "sdist_parts"))
+                cb = self._stored(factor.template, sigs, len(params), store_key, names)
+            if cb is None:
+                key_body, lifted = lift_constants(factor.body)
+                if lifted != params:      # the Function's parameters must be the key's
+                    raise RuntimeError(f"{factor.label}: structure_key and lift_constants disagree")
+                try:
+                    cb = self._build(factor.template, key_body, sigs, len(params), store_key, names)
+                except BodyError as err:
+                    raise BodyError(f"{factor.label}: {err}") from None
             self._cache[key] = cb
             self.compiled += 1
         return cb, np.asarray(params, dtype=float)
 
+    def _stored(self, name: str, sigs: tuple[SlotSignature, ...], n_params: int,
+                store_key: str | None, names: list[str]) -> CompiledBody | None:
+        """The body stored under `store_key`, or None (absent, or not attachable here).
+
+        The key holds the body's structure, in which objects are their geometry's structure
+        (as in the in-memory cache), so a body stored for other objects of the same structure
+        (another problem's blocks, the other arm of the same model) is found too: the stored
+        body's object names (`names` of the process that stored it, in the order of
+        `structure_key`'s walk) are mapped to this body's, position by position, and its
+        distance queries and row groups are renamed accordingly; a map that would send one
+        name to two is a miss."""
+        payload = self.store.load(store_key) if store_key is not None else None
+        if payload is None:
+            return None
+        g = self.geometry
+        if g is not None and any(g.needs_mx(p) for p in payload["primitives"]):
+            return None                    # stored as SX, an MX body here: built instead
+        stored = payload["names"]
+        if len(stored) != len(names):
+            return None
+        m: dict[str, str] = {}
+        for a, b in zip(stored, names):
+            if m.setdefault(a, b) != b:
+                return None
+        try:
+            if any(a != b for a, b in m.items()):
+                payload = {**payload, "groups": _renamed(payload["groups"], m),
+                           "stops": _renamed(payload["stops"], m)}
+            cb = self._from_store(name, sigs, n_params, payload)
+        except Exception:                  # a payload this geometry cannot attach: rebuild
+            return None
+        self.loaded += 1
+        return cb
+
     def _build(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...],
-               n_params: int) -> CompiledBody:
+               n_params: int, store_key: str | None = None, names: list[str] = ()) -> CompiledBody:
+        """The body lowered to casadi Functions (`_lower`), and stored under `store_key`
+        with its object `names` (`_stored`; not MX bodies, nor graphs with an embedded
+        callback)."""
         prims = uses(body, set(GEOMETRY_PRIMITIVES))
         mx = self.geometry is not None and any(self.geometry.needs_mx(p) for p in prims)
+        cb, stored = self._lower(name, body, sigs, n_params, prims, mx)
+        if store_key is not None and stored is not None:
+            self.store.save(store_key, {**stored, "names": list(names)})
+        return cb
+
+    def _from_store(self, name: str, sigs: tuple[SlotSignature, ...], n_params: int,
+                    payload: dict) -> CompiledBody:
+        """A stored body's CompiledBody: the serialized open Function called on fresh
+        symbols, its distance queries attached again from the live geometry, the same
+        substitutions as `_lower` (equal graphs, `tests/nlp/test_nlp_function_store.py`)."""
+        g = self.geometry
+        fname = _fname(name)
+        F = ca.Function.deserialize(payload["function"])
+        meta = (tuple(payload["kinds"]), n_params, "SX", frozenset(payload["primitives"]),
+                tuple(payload["groups"]))
+        if not payload["stops"]:
+            return CompiledBody(F, *meta)
+        slots = [ca.SX.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
+        p = ca.SX.sym("p", n_params)
+        O = ca.SX.sym("o", F.size1_in(len(slots) + 1))
+        out, A = F(*slots, p, O)
+        Ov, fast, lo = [], [], 0
+        for a, b, planar in payload["stops"]:
+            cbf = g.sdist_parts(a, b, planar)[0]
+            x = A[lo:lo + cbf.size1_in(0)]
+            lo += cbf.size1_in(0)
+            Ov.append(cbf(x))
+            fast.append((g.witness_fast(a, b, planar) if hasattr(g, "witness_fast") else cbf)(x))
+        if lo != A.numel():
+            raise ValueError("stored distance queries do not match the geometry's")
+        Ov, fast = ca.vertcat(*Ov), ca.vertcat(*fast)
+        open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
+        stops = ca.Function(fname + "_stops", [*slots, p], [fast])
+        evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
+        f = ca.Function(fname, [*slots, p], [ca.substitute(out, O, Ov)])
+        return CompiledBody(f, *meta, open_f, stops, evaluate)
+
+    def _lower(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...], n_params: int,
+               prims: set, mx: bool) -> tuple[CompiledBody, dict | None]:
+        """(the body lowered to casadi, the payload to store or None when it cannot be
+        serialized: MX bodies, distance queries embedded without `sdist_parts`)."""
         S = ca.MX if mx else ca.SX
         slots = [S.sym(f"x{j}", s.dim) for j, s in enumerate(sigs)]
         p = S.sym("p", n_params)
@@ -399,6 +537,7 @@ class BodyCompiler:
         out = ca.vertcat(*rows) if rows else S(0, 1)
         fname = _fname(name)
         open_f = stops = evaluate = None
+        open_out = out
         if builder.stops:
             O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
             open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
@@ -410,5 +549,17 @@ class BodyCompiler:
             out = ca.substitute(out, O, Ov)
         f = ca.Function(fname, [*slots, p], [out])
         groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
-        return CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
-                            groups, open_f, stops, evaluate)
+        cb = CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
+                          groups, open_f, stops, evaluate)
+        stored = None
+        if not mx and self.store is not None:
+            try:
+                # the open rows and the queries' inputs in one graph (shared chains)
+                stored_f = f if open_f is None else ca.Function(
+                    fname + "_stored", [*slots, p, O], [open_out, ca.vertcat(*builder.stop_inputs)])
+                stored = {"function": stored_f.serialize(), "kinds": list(kinds),
+                          "primitives": sorted(prims), "groups": groups,
+                          "stops": list(builder.stop_bodies) if open_f is not None else []}
+            except Exception:          # e.g. a callback embedded in the graph: not stored
+                stored = None
+        return cb, stored

@@ -451,6 +451,8 @@ class BodyLowering:
         self.stops: list[tuple[Any, Any]] = []     # (symbol o_i, callback(input) expression)
         # the same values for evaluation only (`witness_fast`: the native twin when built)
         self.fast_stops: list[Any] = []
+        self.stop_bodies: list[tuple[Any, Any, bool]] = []   # (body a, body b, planar) per stop
+        self.stop_inputs: list[Any] = []                     # the query's input x per stop
 
     def plan_chains(self, constraints) -> None:
         """Mark the (robot, joints, base) of `fk` nodes that appear with two or more frames in
@@ -576,6 +578,8 @@ class BodyLowering:
             o = ca.SX.sym(f"o{len(self.stops)}", cbf.size1_out(0))
             x = ca.vertcat(ca.reshape(RA, 9, 1), pA, ca.reshape(RB, 9, 1), pB)
             self.stops.append((o, cbf(x)))
+            self.stop_bodies.append((self.body(ba), self.body(bb), fn == "sdist2"))
+            self.stop_inputs.append(x)
             fast = g.witness_fast(self.body(ba), self.body(bb), fn == "sdist2") \
                 if hasattr(g, "witness_fast") else cbf
             self.fast_stops.append(fast(x))

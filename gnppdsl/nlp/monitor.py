@@ -1,4 +1,5 @@
-"""ipopt's iteration callback for the elastic feasibility NLPs (`gnppdsl.nlp.feasibility`).
+"""ipopt's iteration callback for the elastic feasibility NLPs (`gnppdsl.nlp.feasibility`), and
+the check of the point a run ended at for undefined rows (`raise_on_nan`).
 
 Why its own module: it is the one piece of the solver that runs Python inside ipopt's loop,
 and the assembled-NLP caches share one monitor between every graph of a structure
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any, Mapping
 
 import casadi as ca
 import numpy as np
@@ -30,8 +32,9 @@ class IterationMonitor(ca.Callback):
         self.reset(0.0, 0)
         self.construct(name, {})
 
-    def reset(self, stop_below: float, patience: int, deadline: float = math.inf) -> None:
-        """`deadline` (time.perf_counter() clock): stop the run at the first iteration after
+    def reset(self, stop_below: float, patience: int, deadline: float = math.inf, limit: int = 0) -> None:
+        """`limit` > 0: stop the run after that many iterations (`SolverOptions.iteration_budget`:
+        what is left of it, which ipopt's `max_iter`, fixed at assembly, cannot say). `deadline` (time.perf_counter() clock): stop the run at the first iteration after
         it. Why here and not only ipopt's `max_wall_time`: that option is fixed when the NLP
         is assembled, and an assembled NLP is cached and solved again later (restarts, the
         polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly. Only
@@ -40,6 +43,7 @@ class IterationMonitor(ca.Callback):
         self.stop_below, self.patience, self.deadline = stop_below, patience, deadline
         self.best, self.best_z, self.since, self.stalled = np.inf, None, 0, False
         self.timed_out = False
+        self.limit, self.count = limit, 0
 
     def get_n_in(self):
         return ca.nlpsol_n_out()
@@ -98,6 +102,9 @@ class IterationMonitor(ca.Callback):
         if time.perf_counter() >= self.deadline or interrupt.pending():
             self.timed_out = True        # a signal too (`gnppdsl.interrupt`): stop this run now
             return 1
+        self.count += 1                  # called at iteration 0 too: stops at iteration `limit`
+        if self.limit and self.count > self.limit:
+            return 1
         if not np.isfinite(total):
             return 0
         if worst <= self.stop_below:
@@ -111,3 +118,22 @@ class IterationMonitor(ca.Callback):
                 self.stalled = True
                 return 1
         return 0
+
+
+def raise_on_nan(graph: Any, per: Mapping[Any, float]) -> None:
+    """`NumericalFault` naming the factors whose rows are NaN or infinite at the best point
+    (`_verdict` maps NaN to inf). Why: the elastic NLP cannot satisfy a NaN row, so without
+    this the plan was refuted, a conflict learnt and the run ended in "no plan" with only
+    casadi's warnings on stderr; an undefined value is a fault of the model, not a verdict."""
+    bad = [r for r, v in per.items() if not math.isfinite(v)]
+    if not bad:
+        return
+    from gnppdsl.errors import NumericalFault
+
+    names = [graph.factors[r.index].label for r in bad[:3]]
+    more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+    templates = sorted({graph.factors[r.index].template for r in bad})
+    raise NumericalFault(
+        f"solver fault: factor {', '.join(names)}{more} evaluates to NaN or infinity where the solver stopped; "
+        f"check template {', '.join(templates)} for a square root or a log of a "
+        f"negative number, a division by zero or an overflow")

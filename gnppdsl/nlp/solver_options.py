@@ -66,6 +66,10 @@ class SolverOptions:
     near_start_below: float = 1e-3  # a first start whose rows all hold within this is run by
                                    # ipopt with a small bound push (`FeasibilitySolver._near`);
                                    # 0 turns it off
+    iteration_budget: int = 0      # ipopt iterations of one `solve` over all its runs (first
+                                   # runs, polishes, exact-Hessian fallbacks); 0: none. Once it
+                                   # is spent no run starts and a run with an iteration monitor
+                                   # stops; for NLPs whose failure is never a verdict
     trial_patience: int = 2        # kinematic_curvature "auto": after this many solves in a row
                                    # whose linearised runs all failed, the solvers sharing the
                                    # record (`CurvatureTrials`: one loop) run only the exact

@@ -27,6 +27,22 @@ MAX_JOINED_MOTIONS = 3
 joint solve of every motion is tried instead."""
 
 
+MOTION_MAX_ITER = 150
+"""ipopt iterations per run of one phase's NLP between fixed keyframes (`solve_motion`). Why a
+cap below the loop's 1000 (`SolveOptions.max_iter`): such a phase is never a verdict, and one that fails goes on to be
+joined with its keyframes anyway. Measured (seed 0/1, CPU): the motions that were solved took
+0-59 iterations (lab1_paper, lab3_paper, lab4_paper, work1); the ones that failed crept towards
+a violation of 1e-5 without reaching the tolerance for 221-927 iterations (work1 seed 0, the
+active set's repair of motion 2: 10.8 s with the idle arms fixed, then 4.2 s free, before
+the joined solve found it in 4.8 s; capped: 2.1 s, then 3.7 s). It is also each
+`solve_motion`'s budget for all its runs together (`SolverOptions.iteration_budget`): with
+`kinematic_curvature` auto and the polish one call was up to three runs (work1 seed 1, motion 2
+free: 150 + 150 + 150 iterations, 7.9 s, the last a repeat of the polish, now skipped); the
+phase is then at most two calls (idle arms fixed, then free) of 150 iterations before it is
+joined with its keyframes. Measured on work1 (seed 0/1), the motion-2 failure that the join
+repairs: 630 / 683 iterations, 8.2 / 10.1 s CPU before; see the commit for after."""
+
+
 IDLE_MOTION = 1e-3
 """Largest keyframe change (per coordinate) of a trajectory that `motions_between_keyframes`
 first tries with the straight line fixed (a waiting arm); if that phase fails it is solved
@@ -228,6 +244,8 @@ class TrajectoryPhase(CheckMemory):
         # a solver of its own: assembled NLPs are cached by vertex set, which ignores bounds
         solver = run.new_solver()
         solver.options.restarts, solver.options.polish = 0, True
+        solver.options.max_iter = min(solver.options.max_iter, MOTION_MAX_ITER)
+        solver.options.iteration_budget = MOTION_MAX_ITER      # for all its runs together
         solver.options.time_limit = max(0.05, run.remaining())
         r = solver.solve(GraphNLPView.with_variables(m, {v: f for v, f in fixed.items() if v in m}),
                          warm_start=start, seed=run.options.seed)

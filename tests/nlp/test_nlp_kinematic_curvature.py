@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gnppdsl.compile.factors import VarInstance
 from gnppdsl.ir.expr import Constraint, Index, Num, Slot
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.nlp.graph import GraphNLP
@@ -54,3 +55,35 @@ def test_solves_feasible_without_kinematic_curvature():
 
 
 # the setting reaching the solver from a problem file: test_nlp_distance_curvature.py (both settings)
+
+
+def test_without_kinematic_curvature_unit_quaternion_rows_keep_only_convex_curvature():
+    """The unit-quaternion rows (|q|^2 = 1) of an SE3 variable: with kinematic_curvature off
+    their Hessian term is 2 max(lam, 0) on the quaternion's diagonal (a negative multiplier
+    would make the linearised model indefinite), with it on the exact 2 lam; everything else
+    is the same."""
+    P = VarInstance("P", (), 0, "SE3", 7)
+    held = factor("toy.held", [P], [Constraint(Index(Slot(0), Num(0)), "<=", Num(0.5))], 0)
+    g = GraphNLP([*arm_reach_graph().factor_instances, held])
+    a = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=0, assembly="MX")).assemble(g)
+    off = next(o for v, o in zip(a.variables, a.offsets) if v == P)
+    quat = list(range(off + 3, off + 7))
+    q_row = a.lbg.size - 1                      # the one unit-quaternion row, after the factors
+    for z, p, lam in hessian_points(a):
+        for sign in (-1.0, 1.0):
+            lam = lam.copy()
+            lam[q_row] = sign * 0.7
+            h_off = arm_hessian(g, z, p, lam, kinematic_curvature=False)
+            h_on = arm_hessian(g, z, p, lam, kinematic_curvature=True)
+            d = np.diag(h_on)[quat] - np.diag(h_off)[quat]
+            # exact minus linearised on the quaternion: 2 lam where lam < 0, else nothing
+            assert np.allclose(d, 2 * min(sign * 0.7, 0.0), atol=1e-12)
+            # the linearised model's quaternion term: 2 max(lam, 0) over the same Hessian at lam = 0
+            lam0 = lam.copy()
+            lam0[q_row] = 0.0
+            h_zero = arm_hessian(g, z, p, lam0, kinematic_curvature=False)
+            assert np.allclose(np.diag(h_off)[quat] - np.diag(h_zero)[quat], 2 * max(sign * 0.7, 0.0), atol=1e-12)
+            # and nothing else changes
+            mask = np.ones_like(h_off, dtype=bool)
+            mask[quat, quat] = False
+            assert np.allclose(h_off[mask], h_zero[mask], atol=1e-12)

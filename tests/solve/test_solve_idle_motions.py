@@ -111,3 +111,24 @@ def test_a_phase_whose_straight_line_start_satisfies_it_needs_no_nlp(monkeypatch
     _solve(_toy())
     assert answers and all(a == "its start satisfies it" for a in answers), answers
     assert not phase_nlps
+
+
+def test_phase_nlps_between_fixed_keyframes_run_at_most_motion_max_iter_iterations(monkeypatch, zigzag_starts):
+    """A phase between fixed keyframes is never a verdict (a failing one is joined with its
+    keyframes), so its ipopt runs are capped at MOTION_MAX_ITER iterations; the other NLPs of
+    the loop keep the loop's own limit."""
+    from gnppdsl.nlp.feasibility import FeasibilitySolver
+    from gnppdsl.solve.motions import MOTION_MAX_ITER
+
+    limits = {"phase": set(), "other": set()}
+    real_solve = FeasibilitySolver.solve
+
+    def spy_solve(self, g, warm_start=None, initial_guess=None, seed=0, **kw):
+        limits["phase" if "{motion" in g.name else "other"].add(self.options.max_iter)
+        return real_solve(self, g, warm_start=warm_start, initial_guess=initial_guess, seed=seed, **kw)
+
+    monkeypatch.setattr(FeasibilitySolver, "solve", spy_solve)
+    _solve(_toy())
+    assert MOTION_MAX_ITER < SolveOptions().max_iter
+    assert limits["phase"] == {MOTION_MAX_ITER}
+    assert limits["other"] == {SolveOptions().max_iter}
