@@ -18,9 +18,13 @@ north-west, south-west) the same subgraph solved in 30-60 iterations.
 picks an object still at its scene pose or releases one onto a static place, the home
 configuration with the base moved next to the target: the first point on rings of
 `RADII` metres around it whose disc of `BASE_RADIUS` stays out of every static obstacle's
-footprint and inside the robot's `base_min`/`base_max`, nearest the home base first, turned
-to face the target (the arm reaches along the base's x axis, as the Panda's home does). The
-NLP enforces the real clearances; the placement only decides the side.
+footprint and inside the robot's `base_min`/`base_max`, nearest the previous keyframe's base
+first (where the base stands before this pick or put: the robot's placement at its last
+earlier pick or put, its home before the first), turned to face the target (the arm reaches
+along the base's x axis, as the Panda's home does). The NLP enforces the real clearances; the
+placement only decides the side. Nearest the home base instead (before), a put after a pick
+on the far side of the table got a restart base on the side nearest home, away from where the
+base stood.
 """
 from __future__ import annotations
 
@@ -62,11 +66,13 @@ def _footprint_free(x: float, y: float, obstacles) -> bool:
 
 
 def base_next_to(target: Sequence[float], home: Sequence[float], obstacles,
-                 lo: Sequence[float] | None = None, hi: Sequence[float] | None = None) -> list[float] | None:
+                 lo: Sequence[float] | None = None, hi: Sequence[float] | None = None,
+                 near: Sequence[float] | None = None) -> list[float] | None:
     """`home` ([x, y, theta, arm...]) with the base at the first free point around target's
-    (x, y) (see the module docstring), facing it; None when no ring point is free."""
+    (x, y) nearest the base `near` (default: home's; see the module docstring), facing it; None
+    when no ring point is free."""
     tx, ty = float(target[0]), float(target[1])
-    hx, hy = float(home[0]), float(home[1])
+    hx, hy = (float(near[0]), float(near[1])) if near is not None else (float(home[0]), float(home[1]))
     for r in RADII:
         points = []
         for k in range(ANGLES):
@@ -104,13 +110,12 @@ def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance
         return {}
     obstacles = [o for o in scene.static_obstacles(factory.problem.objects).values()
                  if len(o.pose) >= 7]
-    out: dict = {}
+    targets = []                          # (step, robot, variable, target)
     for v in variables:
         robot = v.args[0] if len(v.args) == 1 else None
         if v.space != "joints" or v.waypoints or robot not in mobile or not 1 <= v.step < len(states):
             continue
-        spec = mobile[robot]
-        if len(spec.home) != v.dim:
+        if len(mobile[robot].home) != v.dim:
             continue
         target = None
         for obj, x in parents.items():
@@ -125,12 +130,17 @@ def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance
                     target = list(place.pose)
             if target is not None:
                 break
-        if target is None:
-            continue
+        if target is not None:
+            targets.append((v.step, robot, v, target))
+    out: dict = {}
+    previous = {n: list(r.home) for n, r in mobile.items()}   # the base before the step
+    for _, robot, v, target in sorted(targets, key=lambda t: (t[0], t[1])):
+        spec = mobile[robot]
         lo, hi = spec.attributes.get("base_min"), spec.attributes.get("base_max")
-        q = base_next_to(target, spec.home, obstacles, lo, hi)
+        q = base_next_to(target, spec.home, obstacles, lo, hi, near=previous[robot])
         if q is not None:
             out[v] = q
+            previous[robot] = q
     return out
 
 

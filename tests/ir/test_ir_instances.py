@@ -36,7 +36,7 @@ def test_sorting_family_is_reproducible_inside_its_ranges_and_apart():
     spec = yaml.safe_load((MOBILE / "sorting_random.yaml").read_text())["objects"]
     names = random_objects(problem.scene)
     assert names == list(spec)                                     # red1, blue1, red2
-    seen = set()
+    seen, yaws = set(), set()
     for k in range(25):
         a, b = draw_instance(problem, k).scene, draw_instance(problem, k).scene
         assert a.objects == b.objects                               # same seed, same instance
@@ -47,8 +47,9 @@ def test_sorting_family_is_reproducible_inside_its_ranges_and_apart():
             assert lo_x <= pose[0] <= hi_x and lo_y <= pose[1] <= hi_y
             assert pose[2] == pytest.approx(spec[n]["pose"]["xyz"][2])   # height as written
             assert np.linalg.norm(pose[3:]) == pytest.approx(1.0)
-            lo, hi = spec[n].get("random_yaw", (0.0, 0.0))       # the family draws positions only
+            lo, hi = spec[n]["random_yaw"]                      # the family draws a yaw too
             assert lo - 1e-9 <= _yaw(pose[3:]) <= hi + 1e-9
+            yaws.add(round(_yaw(pose[3:]), 6))
             centres[n] = np.array(pose[:2])
         for i, m in enumerate(names):
             for n in names[i + 1:]:
@@ -59,6 +60,7 @@ def test_sorting_family_is_reproducible_inside_its_ranges_and_apart():
         assert {n: o for n, o in a.objects.items() if n not in names} == \
                {n: o for n, o in problem.scene.objects.items() if n not in names}
     assert len(seen) == 25                                          # different seeds differ
+    assert len(yaws) == 75 and max(map(abs, yaws)) > 1.0            # turned, each differently
     # the instance changes what the compiled problem starts from
     assert problem.scene.objects["red1"].pose[:2] == (-0.3, -0.25)
 

@@ -122,3 +122,36 @@ def test_the_74_degree_pick_and_place_is_solved_without_a_conflict(tmp_path, mon
     assert verify_solution(c.geometry, r).ok
     q = np.asarray(r.extras["values"][next(v for v in r.extras["values"] if v.kind == "q" and v.step == 1)])
     assert not (abs(q[0]) < 0.6 and q[1] < -0.45)  # picked from the west or the north
+
+
+def test_a_put_is_placed_on_the_side_nearest_where_the_base_stood_before_it(tmp_path):
+    """The blue table moved to (1.6, 0.9), north-east of the central table; blue1 at (0, 0.35)
+    near the central table's north edge. The pick's base goes north of the table (the south is
+    out of arm's length), at (0.21, 0.86) (the free point nearest the home base). The tray's
+    free sides at 0.55 m are west (1.05, 0.9), south (1.6, 0.35) and north (1.6, 1.45): from
+    the pick's base west is the nearest (0.84 m against 1.48 m south), from the home base
+    (0, -1.1) south (2.16 m against 2.26 m west), where the base does not stand before the put."""
+    setting = (MOBILE / "sorting_setting.yaml").read_text()
+    for name, z in (("blue_table", 0.25), ("blue_tray", 0.51)):
+        old = f"pose: {{xyz: [1.6, 0, {z}]}}"
+        assert old in setting
+        line = next(ln for ln in setting.splitlines() if ln.strip().startswith(f"{name}:"))
+        setting = setting.replace(line, line.replace(old, f"pose: {{xyz: [1.6, 0.9, {z}]}}"))
+    _problem(tmp_path)
+    (tmp_path / "sorting_setting.yaml").write_text(setting)
+    (tmp_path / "scene.yaml").write_text(
+        "include: sorting_setting.yaml\nname: side\nobjects:\n"
+        "  blue1: {shape: box, size: [0.05, 0.05, 0.1], pose: {xyz: [0.0, 0.35, 0.55]}, color: blue}\n")
+    c = load_and_compile(str(tmp_path / "pick.pntc"))
+    assert list(c.problem.scene.objects["blue_tray"].pose[:2]) == [1.6, 0.9]
+    states = plan_states(c.task, parse_plan(c.task, PLAN))
+    by_step = {v.step: q for v, q in restart_guesses(c.factory, c.factory.variables(states), states).items()
+               if v.kind == "q"}
+    pick, put = by_step[1], by_step[2]
+    assert pick[1] > 0.45 + 0.29                                   # north of the central table
+    assert put[:2] == pytest.approx([1.05, 0.9])                   # west of the tray: nearest the pick's base
+    assert abs(math.remainder(put[2], 2 * math.pi)) < 1e-9         # facing east, the tray
+    # from the home base the same tray gets its south side (the choice before)
+    home = c.problem.scene.robots["mm"].home
+    walls = list(c.problem.scene.static_obstacles(c.problem.objects).values())
+    assert base_next_to((1.6, 0.9), home, walls)[:2] == pytest.approx([1.6, 0.35])
