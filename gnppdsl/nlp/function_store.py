@@ -26,7 +26,9 @@ versions. A change to any of them is a new key; an unreadable or corrupt file is
 Where: `GNPP_FUNCTION_CACHE` (a directory; `0` or `off`: no store), else
 `$XDG_CACHE_HOME/gnppdsl/functions` (default `~/.cache/...`), one subdirectory per code
 version (the stores of versions unused for KEEP_DAYS are removed by the next process that
-writes). Files are written atomically (a temporary file renamed into place), so concurrent
+writes). The directory must be this user's own with mode 0700 (`outputs.private_dir`,
+as the parse cache's): loading unpickles, so a directory others could write to is never
+used. Files are written atomically (a temporary file renamed into place), so concurrent
 processes never read half a file. Size: ~30 MB for the Lab problems' templates.
 """
 from __future__ import annotations
@@ -94,6 +96,17 @@ class FunctionStore:
         self._geo: dict[tuple, str] = {}      # (id(geometry), name) -> fingerprint
         self._geo_alive: dict[int, Any] = {}  # keeps those geometries alive: ids stay theirs
         self.hits = self.misses = self.written = 0
+        self._private: bool | None = None
+
+    def private(self) -> bool:
+        """Whether the store's directory is this user's own with mode 0700
+        (`outputs.private_dir`, checked once per store). Loading unpickles what the directory
+        holds, so a directory another user could write to (a shared temporary directory, a
+        symbolic link, another owner) is never read or written: the process then rebuilds."""
+        if self._private is None:
+            from gnppdsl.outputs import private_dir
+            self._private = private_dir(self.directory) is not None
+        return self._private
 
     @classmethod
     def default(cls) -> "FunctionStore | None":
@@ -163,7 +176,11 @@ class FunctionStore:
         return removed
 
     def load(self, key: str) -> dict | None:
-        """The payload stored under `key`, or None (absent, unreadable or of another format)."""
+        """The payload stored under `key`, or None (absent, unreadable, of another format, or
+        in a directory that is not private)."""
+        if not self.private():
+            self.misses += 1
+            return None
         try:
             with open(self._path(key), "rb") as fh:
                 payload = pickle.load(fh)
@@ -185,7 +202,10 @@ class FunctionStore:
         return payload
 
     def save(self, key: str, payload: dict) -> bool:
-        """Store `payload` under `key` (atomically); False when the directory is not writable."""
+        """Store `payload` under `key` (atomically); False when the directory is not writable
+        or not private."""
+        if not self.private():
+            return False
         path = self._path(key)
         try:
             if not self.written:               # once per process: the version directory's

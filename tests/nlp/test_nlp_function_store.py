@@ -202,3 +202,28 @@ def _objs(e):
     elif dataclasses.is_dataclass(e) and not isinstance(e, type):
         for f in dataclasses.fields(e):
             yield from _objs(getattr(e, f.name))
+
+
+def test_a_store_directory_that_is_not_private_is_never_read_or_written(lab, tmp_path):
+    """Loading unpickles, so a directory another user could write to is not used: a symbolic
+    link to a stored directory reads nothing, and a shared (0777) directory of ours is
+    tightened to 0700 before use."""
+    import os
+    import stat
+    c, factors = lab
+    f = factors[0]
+    real = tmp_path / "real"
+    BodyCompiler(c.geometry, store=FunctionStore(real)).compile(f)
+    assert len(list(real.rglob("*.pkl"))) == 1
+    link = tmp_path / "link"
+    link.symlink_to(real, target_is_directory=True)
+    reader = BodyCompiler(c.geometry, store=FunctionStore(link))
+    reader.compile(f)
+    assert reader.loaded == 0 and reader.store.misses == 1 and reader.store.written == 0
+    assert not FunctionStore(link).save("ab" + "0" * 62, {"function": ""})
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    store = FunctionStore(shared)
+    assert store.save("ab" + "0" * 62, {"function": ""})
+    assert stat.S_IMODE(os.stat(shared).st_mode) == 0o700
