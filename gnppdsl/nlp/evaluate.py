@@ -583,9 +583,10 @@ def _values_of_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m
     return prog, hs
 
 
-def _worst(prog: _Program, hs: list[np.ndarray]) -> float:
-    """Largest row violation (|h| for equalities, max(h, 0) otherwise); NaN anywhere -> inf."""
-    worst = 0.0
+def _margin(prog: _Program, hs: list[np.ndarray]) -> float:
+    """Largest row value, signed (|h| for equalities, h for inequalities, which hold at h <= 0);
+    -inf for a factor without rows, NaN anywhere -> inf."""
+    worst = -math.inf
     for at, eq in ((prog.eq_at, True), (prog.ineq_at, False)):
         if not at:
             continue
@@ -598,6 +599,11 @@ def _worst(prog: _Program, hs: list[np.ndarray]) -> float:
         if v > worst:
             worst = v
     return worst
+
+
+def _worst(prog: _Program, hs: list[np.ndarray]) -> float:
+    """Largest row violation (|h| for equalities, max(h, 0) otherwise); NaN anywhere -> inf."""
+    return max(_margin(prog, hs), 0.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -644,18 +650,4 @@ def factor_margins(factors: Iterable[FactorInstance], values: Mapping[VarInstanc
     factors within a distance of becoming active, which `max_violation` (0 for every factor
     that holds) cannot tell apart. One memo for the whole call, as `max_violation`."""
     m, token = _start_call(geometry)
-    out: list[float] = []
-    for f in factors:
-        prog, hs = _values_of_rows(f, values, m, token)
-        best = -math.inf
-        for at, eq in ((prog.eq_at, True), (prog.ineq_at, False)):
-            for i in at:
-                h = hs[i]
-                if not h.size:
-                    continue
-                v = float(np.abs(h).max() if eq else h.max())
-                if v != v:
-                    v = math.inf
-                best = max(best, v)
-        out.append(best)
-    return out
+    return [_margin(*_values_of_rows(f, values, m, token)) for f in factors]
