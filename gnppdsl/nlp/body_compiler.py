@@ -175,6 +175,20 @@ def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -
     return ca.Function(name, m, [open_f(*m, stop_f(*m))])
 
 
+def _with_queries(fname: str, slots: list, p, out, O, Ov, fast) -> tuple:
+    """(f, open_f, stops, evaluate) of a body whose rows `out` read the distance queries'
+    values through the symbols O: f with the queries' Functions `Ov` substituted, the open form
+    (x.., p, o), the queries' fast twins `fast` alone, and one graph with the fast twins
+    substituted (the queries' inputs share the kinematic chains with the model). Shared by a
+    freshly lowered body and one loaded from the store, so their graphs are equal."""
+    open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
+    # the stop-gradient values are only ever evaluated: the fast twins
+    stops = ca.Function(fname + "_stops", [*slots, p], [fast])
+    evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
+    f = ca.Function(fname, [*slots, p], [ca.substitute(out, O, Ov)])
+    return f, open_f, stops, evaluate
+
+
 def sx_jacobian(out, X, others: list) -> Any:
     """d out / d X as an SX expression (X a vertcat of symbols, `others` the other symbols `out`
     depends on): by reverse AD when `out` has at most as many rows as X has entries, else by
@@ -513,11 +527,8 @@ class BodyCompiler:
             fast.append((g.witness_fast(a, b, planar) if hasattr(g, "witness_fast") else cbf)(x))
         if lo != A.numel():
             raise ValueError("stored distance queries do not match the geometry's")
-        Ov, fast = ca.vertcat(*Ov), ca.vertcat(*fast)
-        open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
-        stops = ca.Function(fname + "_stops", [*slots, p], [fast])
-        evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
-        f = ca.Function(fname, [*slots, p], [ca.substitute(out, O, Ov)])
+        f, open_f, stops, evaluate = _with_queries(fname, slots, p, out, O, ca.vertcat(*Ov),
+                                                   ca.vertcat(*fast))
         return CompiledBody(f, *meta, open_f, stops, evaluate)
 
     def _lower(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...], n_params: int,
@@ -537,17 +548,12 @@ class BodyCompiler:
         out = ca.vertcat(*rows) if rows else S(0, 1)
         fname = _fname(name)
         open_f = stops = evaluate = None
-        open_out = out
         if builder.stops:
             O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
-            open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
-            # the stop-gradient values are only ever evaluated: the fast twins
-            fast = ca.vertcat(*builder.fast_stops)
-            stops = ca.Function(fname + "_stops", [*slots, p], [fast])
-            # one SX graph: the queries' inputs share the kinematic chains with the model
-            evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
-            out = ca.substitute(out, O, Ov)
-        f = ca.Function(fname, [*slots, p], [out])
+            f, open_f, stops, evaluate = _with_queries(fname, slots, p, out, O, Ov,
+                                                       ca.vertcat(*builder.fast_stops))
+        else:
+            f = ca.Function(fname, [*slots, p], [out])
         groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
         cb = CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
                           groups, open_f, stops, evaluate)
@@ -556,7 +562,7 @@ class BodyCompiler:
             try:
                 # the open rows and the queries' inputs in one graph (shared chains)
                 stored_f = f if open_f is None else ca.Function(
-                    fname + "_stored", [*slots, p, O], [open_out, ca.vertcat(*builder.stop_inputs)])
+                    fname + "_stored", [*slots, p, O], [out, ca.vertcat(*builder.stop_inputs)])
                 stored = {"function": stored_f.serialize(), "kinds": list(kinds),
                           "primitives": sorted(prims), "groups": groups,
                           "stops": list(builder.stop_bodies) if open_f is not None else []}
