@@ -29,7 +29,9 @@ version (the stores of versions unused for KEEP_DAYS are removed by the next pro
 writes). The directory must be this user's own with mode 0700 (`outputs.private_dir`,
 as the parse cache's): loading unpickles, so a directory others could write to is never
 used. Files are written atomically (a temporary file renamed into place), so concurrent
-processes never read half a file. Size: ~30 MB for the Lab problems' templates.
+processes never read half a file. Not through `outputs.atomic_open`: its fsync per file would
+cost a cold process ~100 syncs for data that may be lost (a missing entry is a miss), and its
+errors are a user's (`UserError`), where a store that cannot write just does not store. Size: ~30 MB for the Lab problems' templates.
 """
 from __future__ import annotations
 
