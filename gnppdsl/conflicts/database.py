@@ -141,6 +141,26 @@ class DatabaseStats:
     budget_exceeded: int = 0     # matches that gave up at `semantic.MATCH_BUDGET` (answered "unknown")
 
 
+def _journal_mode_wal(conn: sqlite3.Connection, deadline: float) -> None:
+    """Switch to write-ahead logging, retrying while another process holds the lock it needs.
+
+    The connection's busy timeout does not cover this PRAGMA: SQLite returns SQLITE_BUSY at once,
+    without calling the busy handler, when waiting could deadlock (sqlite3_busy_handler's
+    documentation), and it does so when several processes open a new file at the same instant
+    (two of eight openers failed with "database is locked" in CI). Retried with a short back-off
+    until the same 30 s the busy timeout allows elsewhere."""
+    delay = 0.005
+    while True:
+        try:
+            conn.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) or time.monotonic() + delay > deadline:
+                raise
+        time.sleep(delay)
+        delay = min(2 * delay, 0.25)
+
+
 @dataclass
 class SubgraphDatabase:
     """Feasible and infeasible subgraph-NLPs, keyed by their semantic structure."""
@@ -177,7 +197,7 @@ class SubgraphDatabase:
                     conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
                     for stmt in filter(str.strip, _SCHEMA.split(";")):
                         conn.execute(stmt)
-            conn.execute("PRAGMA journal_mode=WAL")
+            _journal_mode_wal(conn, deadline=time.monotonic() + 30.0)
             conn.execute("PRAGMA synchronous=NORMAL")
             with conn:
                 for stmt in filter(str.strip, _SCHEMA.split(";")):
