@@ -18,7 +18,8 @@ It checks, at every keyframe and every trajectory waypoint:
 - placement: an object whose parent is a scene body or object rests on it (bottom on top,
   centre over the top face);
 - collisions: every robot link's URDF collision mesh against every object and static body
-  (`coal.collide` on the meshes themselves, not the hulls the solver uses; a fixed base's
+  (`coal.collide` on the meshes themselves, a touch deeper than 0.1 mm on hulls of its own:
+  the solver's tolerance, `CONTACT_TOLERANCE`; a fixed base's
   unmoving links against static bodies excepted: the arm is mounted on the table), the two
   arms' links against each other, and object pairs by signed distance (boxes), a held object with its
   robot and the pairs of `ignore_collisions` excepted;
@@ -292,6 +293,38 @@ def _kinematic_tree(rep: Report, where: str, scene, bodies, facts, st, ee) -> di
     return world
 
 
+CONTACT_TOLERANCE = 1e-4
+"""Penetration (m) a robot link may have into anything: the constraint tolerance the solver's
+results are documented with (docs/reference.md, "Tolerances of the verification"), 0.1 mm.
+Not 0: a collision constraint active at a solution sits at distance 0 up to the solver's 1e-6,
+and where a link's mesh coincides with its convex hull (a finger pad) `coal.collide` reports
+that touch."""
+
+_HULLS: dict[int, tuple] = {}
+
+
+def _hull(geometry):
+    """The convex hull of a mesh (built once per geometry; a primitive shape is its own)."""
+    if not isinstance(geometry, coal.BVHModelBase):
+        return geometry
+    if id(geometry) not in _HULLS:
+        geometry.buildConvexHull(True, "Qt")
+        _HULLS[id(geometry)] = (geometry, geometry.convex)     # the geometry kept: ids stay unique
+    return _HULLS[id(geometry)][1]
+
+
+def _collides(g1, T1, g2, T2) -> bool:
+    """The meshes touch and go more than CONTACT_TOLERANCE into each other. coal's negative
+    security margin is refused for meshes, and the depths of a mesh's triangle contacts are not
+    the bodies' penetration, so a touch is measured on the convex hulls: a penetration of the
+    meshes never exceeds that of their hulls (a translation separating the hulls separates
+    what they contain), so a hull depth within the tolerance clears the meshes."""
+    if not coal.collide(g1, T1, g2, T2, coal.CollisionRequest(), coal.CollisionResult()):
+        return False
+    d = coal.distance(_hull(g1), T1, _hull(g2), T2, coal.DistanceRequest(), coal.DistanceResult())
+    return d < -CONTACT_TOLERANCE
+
+
 def _state(rep: Report, where: str, robots, bodies, world, qs, held, ignore, margin) -> None:
     """Limits and collisions of one configuration (robots already placed by `place`)."""
     for r, rb in robots.items():
@@ -305,15 +338,11 @@ def _state(rep: Report, where: str, robots, bodies, world, qs, held, ignore, mar
             for go, T in links:
                 if b.static and go.parentJoint == 0 and not rb.planar:
                     continue                  # a link no joint moves (the base on its table)
-                req = coal.CollisionRequest()
-                res = coal.CollisionResult()
-                if coal.collide(go.geometry, _tf(T), b.shape, _tf(world[n]), req, res):
+                if _collides(go.geometry, _tf(T), b.shape, _tf(world[n])):
                     rep.failures.append(f"{where}: {r}/{go.name} collides with {n}")
         for ga, gb in rb.self_pairs:              # the SRDF-filtered pairs of its own links
             go_a, go_b = rb.geom.geometryObjects[ga], rb.geom.geometryObjects[gb]
-            res = coal.CollisionResult()
-            if coal.collide(go_a.geometry, _tf(rb.gdata.oMg[ga]), go_b.geometry, _tf(rb.gdata.oMg[gb]),
-                            coal.CollisionRequest(), res):
+            if _collides(go_a.geometry, _tf(rb.gdata.oMg[ga]), go_b.geometry, _tf(rb.gdata.oMg[gb])):
                 rep.failures.append(f"{where}: {r}/{go_a.name} collides with {r}/{go_b.name} (self-collision)")
         for r2, rb2 in robots.items():
             if r2 <= r:
@@ -322,9 +351,7 @@ def _state(rep: Report, where: str, robots, bodies, world, qs, held, ignore, mar
             for go, T in links:
                 for g2 in range(rb2.geom.ngeoms):
                     go2 = rb2.geom.geometryObjects[g2]
-                    res = coal.CollisionResult()
-                    if coal.collide(go.geometry, _tf(T), go2.geometry, _tf(B2 * rb2.gdata.oMg[g2]),
-                                    coal.CollisionRequest(), res):
+                    if _collides(go.geometry, _tf(T), go2.geometry, _tf(B2 * rb2.gdata.oMg[g2])):
                         rep.failures.append(f"{where}: {r}/{go.name} collides with {r2}/{go2.name}")
     names = sorted(bodies)
     for a_i, a in enumerate(names):
