@@ -10,7 +10,6 @@ import time
 from typing import TYPE_CHECKING
 
 import networkx as nx
-import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.conflicts.database import names_of
@@ -225,7 +224,6 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
             for v in chain:
                 if self.values.stamp[v] < self.values.stamp[newest]:
                     warm[v] = self.values[newest]
-            align_quaternions(chains, newest, warm)
         return warm
 
     def overturned(self, key: frozenset) -> bool:
@@ -296,39 +294,6 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
                     conflict = None
             run.db.add(g, r.feasible, conflict)
         return r
-
-
-QUATERNION = {"SE3": slice(3, 7), "quat": slice(0, 4)}
-"""Where a value of these spaces holds its unit quaternion (SE3: [x, y, z, qx, qy, qz, qw])."""
-
-
-def align_quaternions(chains: nx.Graph, root: VarInstance, warm: dict) -> None:
-    """Give the rotations along one chain of equality factors (component of `chains` holding
-    `root`) one quaternion sign: walking out from `root`, a value whose quaternion points away
-    from its neighbour's (negative dot product) is negated. q and -q are the same rotation, so
-    every factor that reads the rotation (`fixed_world`, `kin_switch_rel`, `on`, distances) has
-    the same value there; only the equality `a == b` between the raw vectors (`same`, a
-    pose kept while its parent stays) sees them 2 apart, and ipopt cannot rotate a quaternion
-    to its negative without leaving the unit sphere's neighbourhood.
-
-    Why: values of one solve keep their differences along a chain (see `warm_start`), and the
-    union of a relaxation's components is one solve: clutter_6's no_robot_time_traj drops
-    `same` (tag time), so each step's obstacle pose was its own component, one of which came
-    back from a restart as -q; the mode-switch graph started there ran 165 iterations (31 s CPU)
-    and stopped at violation 2 on `stay(o6, table)`, and Alg. 1's slices found it feasible."""
-    where = QUATERNION.get(root.space)
-    if where is None:
-        return
-    for parent, child in nx.bfs_edges(chains, root):
-        if child.space != root.space or parent not in warm or child not in warm:
-            continue
-        a = np.asarray(warm[parent], float).reshape(-1)
-        b = np.asarray(warm[child], float).reshape(-1)
-        if a.size != b.size or a.size < where.stop or float(np.dot(a[where], b[where])) >= 0.0:
-            continue
-        flipped = b.copy()
-        flipped[where] = -flipped[where]
-        warm[child] = flipped
 
 
 def equality_pair(f: FactorInstance) -> tuple[VarInstance, VarInstance] | None:
