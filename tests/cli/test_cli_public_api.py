@@ -49,6 +49,24 @@ def test_importing_the_package_loads_no_solver_library():
     assert out.stdout.strip() == "[]"
 
 
+
+def test_the_command_line_loads_no_solver_library_before_a_command_needs_it():
+    """`import gnppdsl.cli.main`, its parser and `gnpp --help` / `gnpp solve --help` import none
+    of the heavy libraries (issue 20: a cold `gnpp solve` pays for what it uses, nothing
+    before). A module-level `import casadi` (or pinocchio, coal, networkx, ...) anywhere on the
+    command line's import path fails this."""
+    heavy = ("casadi", "pinocchio", "coal", "clingo", "networkx", "numpy", "yaml", "lark",
+             "sqlite3", "trimesh", "scipy", "gnppdsl.solve.loop", "gnppdsl.nlp.feasibility")
+    code = ("import sys\nimport gnppdsl.cli.main as m\n"
+            "for argv in (['--help'], ['solve', '--help'], ['bench', '--help'], ['view', '--help']):\n"
+            "    try:\n        m.main(argv)\n    except SystemExit:\n        pass\n"
+            f"print(sorted(x for x in {heavy!r} if x in sys.modules), file=sys.stderr)\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         check=True, cwd=ROOT)
+    assert "usage: gnpp solve" in out.stdout          # the help ran
+    assert out.stderr.strip().splitlines()[-1] == "[]", out.stderr
+
 def _spies(monkeypatch) -> list:
     """Spies on the four public names (calling through); the list records (name, args)."""
     calls: list = []
