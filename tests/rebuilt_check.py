@@ -48,7 +48,8 @@ import pinocchio as pin
 import yaml
 
 # model -> (URDF, SRDF or None), relative to example-robot-data's robots directory
-MODELS = {"panda": ("panda_description/urdf/panda.urdf", "panda_description/srdf/panda.srdf")}
+MODELS = {"panda": ("panda_description/urdf/panda.urdf", "panda_description/srdf/panda.srdf"),
+          "pr2": ("pr2_description/urdf/pr2.urdf", "pr2_description/srdf/pr2.srdf")}
 _FACT = re.compile(r"(\w+)\(([\w, ]+)\)\s*=\s*(\w+)")
 
 
@@ -81,7 +82,13 @@ def load_scene(path: Path) -> dict:
     data = yaml.safe_load(path.read_text())
     inc = data.pop("include", None)
     if inc:
-        base = load_scene(path.parent / inc)
+        base: dict = {}
+        for one in ([inc] if isinstance(inc, str) else inc):      # one file or a list, in order
+            sub = load_scene(path.parent / one)
+            for key in ("robots", "objects"):
+                base.setdefault(key, {}).update(sub.pop(key, {}) or {})
+            base["ignore_collisions"] = list(base.get("ignore_collisions", [])) + list(sub.pop("ignore_collisions", []))
+            base.update({k: v for k, v in sub.items() if k not in base})
         for key in ("robots", "objects"):
             base.setdefault(key, {}).update(data.pop(key, {}) or {})
         base["ignore_collisions"] = list(base.get("ignore_collisions", [])) + list(data.pop("ignore_collisions", []))
@@ -106,12 +113,14 @@ class _Robot:
 
     def q_full(self, q) -> np.ndarray:
         full = pin.neutral(self.model)
-        for j, v in (self.spec.get("locked") or {}).items():
-            full[self.model.joints[self.model.getJointId(j)].idx_q] = float(v)
         arm = list(q)[3:] if self.planar else list(q)
         names = self.joints[3:] if self.planar else self.joints
-        for j, v in zip(names, arm):
-            full[self.model.joints[self.model.getJointId(j)].idx_q] = v
+        for j, v in [*(self.spec.get("locked") or {}).items(), *zip(names, arm)]:
+            jm = self.model.joints[self.model.getJointId(j)]
+            if jm.nq == 2:                  # a continuous joint (the PR2's rolls): cos, sin of its angle
+                full[jm.idx_q:jm.idx_q + 2] = np.cos(float(v)), np.sin(float(v))
+            else:
+                full[jm.idx_q] = float(v)
         return full
 
     def base_at(self, q) -> pin.SE3:
@@ -132,6 +141,8 @@ class _Robot:
         arm = list(q)[3:] if self.planar else list(q)
         names = self.joints[3:] if self.planar else self.joints
         for j, v in zip(names, arm):
+            if self.model.joints[self.model.getJointId(j)].nq != 1:
+                continue                        # a continuous joint has no limits
             i = self.model.joints[self.model.getJointId(j)].idx_q
             lo, hi = self.model.lowerPositionLimit[i], self.model.upperPositionLimit[i]
             if not lo - tol <= v <= hi + tol:

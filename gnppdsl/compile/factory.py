@@ -506,7 +506,7 @@ class GraphNLPFactory:
             return self._fk(e, ctx, acc)
         if fn == "link":
             robot = self._object(e.args[0], ctx, acc)
-            return Call("link", (Obj(robot), self._resolve(e.args[1], ctx, acc)), span=e.span)
+            return Call("link", (Obj(robot), self._link_name(robot, e.args[1], ctx, acc)), span=e.span)
         if fn in self.domain.scene_attrs:
             objs = [self._object(a, ctx, acc) for a in e.args]
             return self._scene_attr(fn, objs, ctx, e)
@@ -553,7 +553,7 @@ class GraphNLPFactory:
     def _body_and_pose(self, a, ctx: _Ctx, acc: _Factor) -> list:
         if isinstance(a, Call) and a.fn == "link":
             robot = self._object(a.args[0], ctx, acc)
-            link = self._resolve(a.args[1], ctx, acc)
+            link = self._link_name(robot, a.args[1], ctx, acc)
             frame = self.domain.frame_of(self.problem.objects[robot])
             if frame is None or not (isinstance(frame.expr, Call) and frame.expr.fn == "fk"):
                 raise error_at(a.span, f"{ctx.where}: link() needs a robot whose frame is fk(...)")
@@ -562,6 +562,15 @@ class GraphNLPFactory:
             return [Call("link", (Obj(robot), link)), self._resolve(fk_call, inner, acc)]
         obj = self._object(a, ctx, acc)
         return [Obj(obj), self._world(obj, ctx, acc, a)]
+
+    def _link_name(self, robot: str, e, ctx: _Ctx, acc: _Factor):
+        """The link named by `link(r, NAME)`: a role of the scene robot's `links:` (the domain
+        writes `link(r, "hand")`, the scene says which link that is) or a link name itself."""
+        name = self._resolve(e, ctx, acc)
+        srobot = self.scene.robots.get(robot) if self.scene is not None else None
+        if isinstance(name, Str) and srobot is not None and name.value in srobot.links:
+            return Str(srobot.links[name.value], span=name.span)
+        return name
 
     def _fk(self, e: Call, ctx: _Ctx, acc: _Factor):
         robot = self._object(e.args[0], ctx, acc)

@@ -16,31 +16,14 @@ from __future__ import annotations
 import functools
 import math
 import os
-import sys
-import sysconfig
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from gnppdsl.errors import UserError
 from gnppdsl.geometry.shapes import convex_from_points, shape_vertices
+from gnppdsl.ir.robot_files import resolve_model_files, robot_data_share  # noqa: F401 (view.samples imports them here)
 from gnppdsl.ir.scene_model import SceneRobot
-
-# example-robot-data names -> path below `<share>/example-robot-data/robots/` (URDF, SRDF).
-_KNOWN = {
-    "panda": ("panda_description/urdf/panda.urdf", "panda_description/srdf/panda.srdf"),
-    "panda_collision": ("panda_description/urdf/panda_collision.urdf", "panda_description/srdf/panda.srdf"),
-    "ur3": ("ur_description/urdf/ur3_robot.urdf", None),
-    "ur5": ("ur_description/urdf/ur5_robot.urdf", "ur_description/srdf/ur5.srdf"),
-    "ur10": ("ur_description/urdf/ur10_robot.urdf", None),
-    "kinova": ("kinova_description/robots/kinova.urdf", "kinova_description/srdf/kinova.srdf"),
-    "z1": ("z1_description/urdf/z1.urdf", "z1_description/srdf/z1.srdf"),
-    "xarm7": ("xarm_description/urdf/xarm7.urdf", "xarm_description/srdf/xarm7.srdf"),
-    "tiago": ("tiago_description/robots/tiago.urdf", None),
-    "pr2": ("pr2_description/urdf/pr2.urdf", "pr2_description/srdf/pr2.srdf"),
-    "double_pendulum": ("double_pendulum_description/urdf/double_pendulum.urdf", None),
-    "double_pendulum_continuous": ("double_pendulum_description/urdf/double_pendulum_continuous.urdf", None),
-}
 
 _BIG = 1e10   # pinocchio marks "no limit" with +-DBL_MAX
 
@@ -52,57 +35,6 @@ _UNIT_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _ALIGNED_JOINTS = {"R": "revolute", "RUB": "revolute_unbounded", "P": "prismatic"}
 _UNALIGNED_JOINTS = {"RevoluteUnaligned": "revolute", "RevoluteUnboundedUnaligned": "revolute_unbounded",
                      "PrismaticUnaligned": "prismatic"}
-
-
-def robot_data_share() -> str:
-    """`<site-packages>/cmeel.prefix/share`, where example-robot-data installs its files."""
-    candidates = []
-    try:
-        import pinocchio as pin
-        # .../site-packages/cmeel.prefix/lib/python3.X/site-packages/pinocchio/__init__.py
-        candidates.append(os.path.normpath(os.path.join(os.path.dirname(pin.__file__), "..", "..", "..", "..", "share")))
-    except ImportError:  # pragma: no cover - pinocchio is a hard dependency
-        pass
-    for key in ("purelib", "platlib"):
-        candidates.append(os.path.join(sysconfig.get_paths()[key], "cmeel.prefix", "share"))
-    for p in sys.path:
-        candidates.append(os.path.join(p, "cmeel.prefix", "share"))
-    for c in candidates:
-        if os.path.isdir(os.path.join(c, "example-robot-data", "robots")):
-            return c
-    raise UserError("example-robot-data is not installed (no cmeel.prefix/share/example-robot-data found); "
-                    "install it with `pip install example-robot-data` or give the robot a `urdf:` path")
-
-
-def resolve_model_files(name: str) -> tuple[str, str | None, str]:
-    """An example-robot-data model name -> (urdf path, srdf path or None, package dir)."""
-    share = robot_data_share()
-    root = os.path.join(share, "example-robot-data", "robots")
-    if name in _KNOWN:
-        urdf_rel, srdf_rel = _KNOWN[name]
-        urdf = os.path.join(root, urdf_rel)
-        srdf = os.path.join(root, srdf_rel) if srdf_rel else None
-    else:
-        # Generic lookup: <x>_description/{urdf,robots}/<name>.urdf
-        urdf = srdf = None
-        for d in sorted(os.listdir(root)):
-            for sub in ("urdf", "robots"):
-                p = os.path.join(root, d, sub, name + ".urdf")
-                if os.path.isfile(p):
-                    urdf = p
-                    s = os.path.join(root, d, "srdf", name + ".srdf")
-                    srdf = s if os.path.isfile(s) else None
-                    break
-            if urdf:
-                break
-        if urdf is None:
-            known = ", ".join(sorted(_KNOWN))
-            raise UserError(f"unknown robot model '{name}' (example-robot-data has no {name}.urdf; known: {known})")
-    if not os.path.isfile(urdf):
-        raise UserError(f"robot model '{name}': URDF not found at {urdf}")
-    if srdf is not None and not os.path.isfile(srdf):
-        srdf = None
-    return urdf, srdf, share
 
 
 @dataclass(frozen=True)
@@ -365,9 +297,12 @@ def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_it
             raise UserError(f"robot {name}: cannot lock unknown joint '{jname}'")
         jid = full.getJointId(jname)
         jm = full.joints[jid]
-        if jm.nq != 1:
+        if jm.nq == 2 and jm.nv == 1:       # a continuous joint: pinocchio stores (cos, sin)
+            q_ref[jm.idx_q:jm.idx_q + 2] = (math.cos(float(val)), math.sin(float(val)))
+        elif jm.nq != 1:
             raise UserError(f"robot {name}: can only lock 1-DOF joints, '{jname}' has nq={jm.nq}")
-        q_ref[jm.idx_q] = float(val)
+        else:
+            q_ref[jm.idx_q] = float(val)
         lock_ids.append(jid)
     if lock_ids:
         model, geom = pin.buildReducedModel(full, geom_full, lock_ids, q_ref)

@@ -30,6 +30,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from gnppdsl.ir.scene_model import Scene, SceneObject
 
 DEFAULT_CLEARANCE = 0.03
+RANDOM_KEYS = ("random_xy", "random_yaw", "random_clearance")   # an object's draw ranges
 MAX_DRAWS = 2000          # rejection-sampling attempts per object before the family is refused
 
 
@@ -74,7 +75,7 @@ def range_error(key: str, value) -> str | None:
 def _ranges(obj: "SceneObject") -> tuple[tuple[float, float], tuple[float, float], tuple[float, float], float]:
     a = obj.attributes
     where = f"{obj.source}: object '{obj.name}'" if obj.source else f"object '{obj.name}'"
-    for key in ("random_xy", "random_yaw", "random_clearance"):
+    for key in RANDOM_KEYS:
         problem = range_error(key, a[key]) if key in a else None
         if problem:
             raise UserError(f"{where}: {problem}")

@@ -6,10 +6,11 @@ built: the logic resolver sees the domain through `_DomainView`.
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from gnppdsl.ir import model as M
-from gnppdsl.ir.expr import Obj
+from gnppdsl.ir.expr import Call, Obj, Str
 from gnppdsl.ir.families import FactExpander, group_names
 from gnppdsl.ir.resolve_logic import LogicResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
@@ -144,12 +145,13 @@ class ProblemResolver:
                     continue
                 scene_path = str((Path(f.path).parent / d.path))
                 scene_ref_span = d.span
+                from gnppdsl.ir.instances import RANDOM_KEYS
                 from gnppdsl.ir.scene import OBJECT_KEYS, ROBOT_KEYS, load_scene_with_spans
 
                 scene, spans = load_scene_with_spans(scene_path, self.r, d.span)
                 declared = set(dom.scene_attrs)
                 for (entity, key), kspan in spans.items():
-                    if key in declared:
+                    if key in declared or key in RANDOM_KEYS:     # draw ranges: not attributes
                         continue
                     known = sorted(declared | set(OBJECT_KEYS) | set(ROBOT_KEYS))
                     hint = did_you_mean(key, known)
@@ -157,6 +159,7 @@ class ProblemResolver:
                         self.err(kspan, f"unknown key '{key}' in '{entity}'", "unknown-key", hint)
         if scene is not None:
             self.check_scene_objects(dom, objects, scene, scene_ref_span)
+            self.check_link_names(dom, scene)
             for rb in reach:
                 if scene.dimension != 3:
                     # the graph samples IK solutions of a URDF robot: refused here rather than
@@ -175,6 +178,41 @@ class ProblemResolver:
         return M.Problem(f.header.name.value, f.path, dom, objects, tuple(full), tuple(goal), settings,
                          tuple(relax), tuple(reach), scene_path, scene, f.header.span)
 
+
+    def check_link_names(self, dom: M.Domain, scene) -> None:
+        """Every `link(r, "NAME")` of a template some rule calls names, for a robot of the
+        scene, a role of its `links:` or a link of its URDF that has collision geometry; else
+        the error stands at the name (read from the URDF's text, as the scene's `links:` are:
+        no robot model is loaded). Which robot `r` is, grounding decides; here any URDF robot
+        of the scene will do, which catches misspelt names and another robot's links."""
+        from gnppdsl.ir.scene import urdf_collision_links
+
+        names: set[str] = set()
+        for spec in scene.robots.values():
+            if spec.kind != "urdf":
+                continue
+            known = urdf_collision_links(spec.model, spec.urdf)
+            if known is None:
+                return                  # the robot cannot be read: loading it reports that
+            names |= set(known) | set(spec.links)
+        if not names:
+            return
+        called = {c.template for rule in dom.rules for c in rule.calls}
+        seen: set[int] = set()
+        for t in (dom.templates[n] for n in called if n in dom.templates):
+            for node in _walk(t.body):
+                if isinstance(node, Call) and node.fn == "link" and len(node.args) == 2 \
+                        and isinstance(node.args[1], Str) and node.args[1].value not in names:
+                    at = node.args[1].span or node.span or t.span
+                    if id(node) in seen:
+                        continue
+                    seen.add(id(node))
+                    robots = ", ".join(sorted(n for n, r in scene.robots.items() if r.kind == "urdf"))
+                    self.err(at, f"link '{node.args[1].value}' (template {t.name}): no robot of scene "
+                             f"{Path(scene.path).name} ({robots}) has a link or a `links:` role of "
+                             "that name", "unknown-link",
+                             did_you_mean(node.args[1].value, sorted(names))
+                             or "name a role of the scene robot's `links:` or a URDF link with collision geometry")
 
     def check_scene_objects(self, dom: M.Domain, objects: dict[str, str], scene, span) -> None:
         """Objects with a geometric role must be in the scene: robots of `joints(r)` variables
@@ -248,3 +286,17 @@ def _non_goal_literal(x, lit):
     if isinstance(x, M.Compare) or (isinstance(x, M.StateLit) and x.negated):
         return lit
     return None
+
+
+def _walk(node):
+    """Every expression node below `node` (statements, tuples, dataclass fields), pre-order."""
+    if isinstance(node, (tuple, list)):
+        for x in node:
+            yield from _walk(x)
+        return
+    if not dataclasses.is_dataclass(node):
+        return
+    yield node
+    for f in dataclasses.fields(node):
+        if f.name != "span":
+            yield from _walk(getattr(node, f.name))

@@ -8,6 +8,8 @@ imported: `gnpp check` stays fast.
 """
 from __future__ import annotations
 
+import functools
+
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +23,7 @@ from gnppdsl.lang.diagnostics import Reporter, did_you_mean, read_source
 
 TOP_KEYS = ("include", "name", "dimension", "workspace", "robots", "objects", "ignore_collisions")
 ROBOT_KEYS = ("kind", "model", "urdf", "srdf", "package_dirs", "base", "base_joint", "ee", "locked",
-              "home", "held_pose", "shape", "color")
+              "links", "home", "held_pose", "shape", "color")
 BASE_JOINTS = ("fixed", "planar", "free")
 OBJECT_KEYS = ("shape", "size", "pose", "static", "color", "parent", "file", "scale")
 SHAPES = ("box", "cylinder", "sphere", "circle", "mesh")
@@ -117,6 +119,31 @@ def _looks_numeric(text: str) -> bool:
 def _short(text: str, n: int = 80) -> str:
     """A path as quoted in a message (a 10,000-character name is cut)."""
     return text if len(text) <= n else f"{text[:n]}... ({len(text):,} characters)"
+
+
+@functools.lru_cache(maxsize=32)
+def _collision_links_of(urdf: str) -> frozenset[str] | None:
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(urdf).getroot()
+    except (OSError, ET.ParseError):
+        return None        # load_robot reports an unreadable URDF
+    return frozenset(ln.get("name") for ln in root.iter("link") if ln.find("collision") is not None)
+
+
+def urdf_collision_links(model: str | None, urdf: str | None) -> frozenset[str] | None:
+    """The links of a robot's URDF that have collision geometry, read from the XML (None when
+    the file cannot be found or read: loading the robot reports that)."""
+    if urdf is None and model is not None:
+        from gnppdsl.errors import UserError
+        from gnppdsl.ir.robot_files import resolve_model_files
+
+        try:
+            urdf = resolve_model_files(model)[0]
+        except UserError:
+            return None
+    return _collision_links_of(urdf) if urdf else None
 
 
 # ----------------------------------------------------------------------------------------
@@ -389,7 +416,7 @@ class _Loader:
         src = str(self.span(knode))
         color = self.color(m["color"][1]) if "color" in m else (0.9, 0.9, 0.9, 1.0)
         if kind == "planar":
-            for k in ("model", "urdf", "srdf", "package_dirs", "locked", "ee", "base", "base_joint"):
+            for k in ("model", "urdf", "srdf", "package_dirs", "locked", "ee", "base", "base_joint", "links"):
                 if k in m:
                     self.error(m[k][0], f"'{k}' does not apply to a planar robot", "scene")
             home = self.numbers(m["home"][1], "home [x, y, theta]", 3) if "home" in m else (0.0, 0.0, 0.0)
@@ -417,12 +444,33 @@ class _Loader:
         if "locked" in m:
             for k, (kn, vn) in self.mapping(m["locked"][1], "locked").items():
                 locked[k] = self.number(vn, f"locked joint '{k}'")
+        links = self.links(name, m["links"][1], model, urdf) if "links" in m else {}
         home = self.numbers(m["home"][1], "home") if "home" in m else ()
         held = self.pose(m["held_pose"][1], 3) if "held_pose" in m else None
         shape = self.shape(m["shape"][1], m, 3) if "shape" in m else None
         return SceneRobot(name, "urdf", model=model, urdf=urdf, srdf=srdf, package_dirs=pdirs, base=base,
-                          ee=ee, locked=locked, home=home, held_pose=held, shape=shape, color=color,
-                          attributes=attrs, source=src)
+                          ee=ee, locked=locked, links=links, home=home, held_pose=held, shape=shape,
+                          color=color, attributes=attrs, source=src)
+
+    def links(self, name: str, node, model: str | None, urdf: str | None) -> dict[str, str]:
+        """`links: {hand: panda_hand, ...}`: role names a domain writes in `link(r, "hand")`,
+        each naming a link of the robot's URDF that has collision geometry. Checked against the
+        URDF's text (no pinocchio: `gnpp check` stays fast); a name the URDF lacks is reported
+        at its value, with the closest link name."""
+        out: dict[str, str] = {}
+        known = urdf_collision_links(model, urdf)
+        for role, (kn, vn) in self.mapping(node, f"links of robot '{name}'").items():
+            try:
+                ln = self.string(vn, f"link of role '{role}'")
+            except _Bad:
+                continue
+            if known is not None and ln not in known:
+                self.error(vn, f"robot '{name}' has no link '{ln}' with collision geometry "
+                           f"(role '{role}')", "unknown-link",
+                           did_you_mean(ln, sorted(known)) or f"{len(known)} links have collision geometry")
+                continue
+            out[role] = ln
+        return out
 
     def obj(self, name: str, knode, node, dim: int) -> dict:
         m = self.mapping(node, f"object '{name}'")

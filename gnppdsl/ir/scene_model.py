@@ -46,6 +46,7 @@ class SceneRobot:
     base: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)   # SE3 world pose of the base
     ee: str | None = None                   # end-effector frame, e.g. "panda_hand_tcp"
     locked: dict[str, float] = field(default_factory=dict)        # joint name -> locked value
+    links: dict[str, str] = field(default_factory=dict)           # role -> link name (`link(r, "hand")`)
     home: tuple[float, ...] = ()            # home configuration (planar: SE2 pose)
     held_pose: tuple[float, ...] | None = None   # initial guess of a held object's pose
                                             # relative to the robot's gripper frame (SE3 / SE2)

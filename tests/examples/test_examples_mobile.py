@@ -1,4 +1,5 @@
-"""The mobile examples (a Panda on a holonomic base, examples/mobile) solved end to end and
+"""The mobile examples (a Panda on a holonomic base, and a PR2 for the two randomised families,
+examples/mobile) solved end to end and
 checked by the independent pinocchio + coal verification (keyframes, every trajectory waypoint,
 the plan against the SAS+ task), with N from expected.yaml. Slow (a mobile solve is tens of
 seconds of CPU): run with GNPP_SLOW=1, as `.ci/run` does. The algorithms are those
@@ -19,7 +20,8 @@ from rebuilt_check import check as rebuilt_check     # tests/rebuilt_check.py: n
 
 MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 EXPECTED = yaml.safe_load((MOBILE / "expected.yaml").read_text())["problems"]
-ALGORITHM = {"sort2": "gnpp", "pick_place": "rlgp", "sort4": "rlgp", "sort_random": "rlgp", "pick_place3": "rlgp"}
+ALGORITHM = {"sort2": "gnpp", "pick_place": "rlgp", "sort4": "rlgp", "sort_random": "rlgp", "pick_place3": "rlgp",
+             "sort_random_pr2": "rlgp", "pick_place3_pr2": "rlgp"}     # the last two: a PR2 (scene links:)
 pytestmark = pytest.mark.mobile       # `.ci/run` runs these in a process of their own
 
 

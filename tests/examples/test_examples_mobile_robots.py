@@ -1,0 +1,159 @@
+"""The mobile domain is robot-agnostic (issue 22, deliverable 4): its templates name links by
+role (`link(r, "hand")`) and each scene robot's `links:` says which link plays the role, so the
+same domain serves the mobile Panda (sorting_setting.yaml) and a PR2 (sorting_pr2_setting.yaml,
+example-robot-data `pr2`). Fast: `gnpp check` and the factory's grounding, no solve (the PR2
+problems are solved and verified in test_examples_mobile.py, slow)."""
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+
+from gnppdsl.ir.resolve import check_files
+
+MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
+PR2_PROBLEMS = ("sort_random_pr2.pntc", "pick_place3_pr2.pntc")
+
+
+@pytest.mark.parametrize("name", PR2_PROBLEMS)
+def test_pr2_problems_check(name):
+    rep = check_files([str(MOBILE / name)])
+    assert rep.ok, rep.render()
+
+
+def _ground_links(problem: str) -> set[str]:
+    """The link names of the ground factors of pick(red1) then drop(red1) (`link(r, NAME)`
+    as the factory resolved it)."""
+    from gnppdsl import ir
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+    from gnppdsl.ir.expr import Call, Str
+    from gnppdsl.solve.compiled import compile_problem
+
+    c = compile_problem(ir.load_problem(MOBILE / problem))
+    states = plan_states(c.task, parse_plan(c.task, "pick(red1, mm, center); drop(red1, mm, red_tray)"))
+    names: set[str] = set()
+
+    def walk(x):
+        if isinstance(x, Call) and x.fn == "link":
+            assert isinstance(x.args[1], Str), x
+            names.add(x.args[1].value)
+        if isinstance(x, (tuple, list)):
+            for a in x:
+                walk(a)
+        elif hasattr(x, "__dataclass_fields__"):
+            for f in x.__dataclass_fields__:
+                if f != "span":
+                    walk(getattr(x, f))
+    for f in c.factory.factors(states):
+        walk(f.body)
+    return names
+
+
+def test_both_settings_have_the_same_furniture():
+    """sorting_pr2_setting.yaml repeats sorting_setting.yaml's furniture (the test families of
+    the two robots are the same problems); only the robot differs."""
+    import yaml
+
+    a, b = (yaml.safe_load((MOBILE / f).read_text()) for f in ("sorting_setting.yaml", "sorting_pr2_setting.yaml"))
+    assert a.pop("robots")["mm"]["model"] == "panda" and b.pop("robots")["mm"]["model"] == "pr2"
+    assert a == b
+
+
+@pytest.mark.parametrize("problem, links", [
+    ("sort_random_pr2.pntc", {"base_link", "r_forearm_link", "r_wrist_flex_link", "r_gripper_palm_link"}),
+    ("sort_random.pntc", {"panda_link0", "panda_link5", "panda_link6", "panda_hand"}),
+])
+def test_roles_ground_to_each_robots_links(problem, links):
+    """The factory grounds `link(r, "forearm")` to the scene robot's link (the PR2's
+    r_forearm_link, the Panda's panda_link5): the factors name exactly the robot's four links,
+    no role and no other robot's link."""
+    assert _ground_links(problem) == links
+
+
+def _copy(tmp_path: Path) -> Path:
+    for p in MOBILE.iterdir():
+        if p.suffix in (".pntc", ".yaml"):
+            shutil.copy(p, tmp_path / p.name)
+    return tmp_path
+
+
+def _at(diags, file: str, line: int, col: int, kind: str):
+    hits = [d for d in diags if Path(d.span.file).name == file and d.span.line == line
+            and d.span.column == col and d.kind == kind]
+    assert hits, "\n".join(f"{d.span}: {d.kind}: {d.message}" for d in diags)
+    return hits[0]
+
+
+def test_unknown_role_in_the_domain_is_located(tmp_path):
+    """A misspelt role in a template is an error at its string, with the role as the hint;
+    before roles were checked, `gnpp check` passed it and the solve failed in the geometry."""
+    d = _copy(tmp_path)
+    dom = (d / "domain.pntc").read_text()
+    assert dom.count('link(r, "wrist")') == 1
+    (d / "domain.pntc").write_text(dom.replace('link(r, "wrist")', 'link(r, "wirst")'))
+    line = next(i for i, t in enumerate((d / "domain.pntc").read_text().splitlines(), 1) if '"wirst"' in t)
+    col = (d / "domain.pntc").read_text().splitlines()[line - 1].index('"wirst"') + 1
+    for problem in ("sort_random_pr2.pntc", "sort2.pntc"):
+        rep = check_files([str(d / problem)])
+        assert not rep.ok
+        x = _at(rep.reporter.diagnostics, "domain.pntc", line, col, "unknown-link")
+        assert "wirst" in x.message and "wrist" in (x.hint or "")
+
+
+def test_a_panda_link_in_the_pr2_scene_is_refused(tmp_path):
+    """A literal link of the other robot: fine for the Panda's scene, an error for the PR2's."""
+    d = _copy(tmp_path)
+    dom = (d / "domain.pntc").read_text()
+    (d / "domain.pntc").write_text(dom.replace('link(r, "hand")', 'link(r, "panda_hand")'))
+    assert check_files([str(d / "sort2.pntc")]).ok
+    rep = check_files([str(d / "sort_random_pr2.pntc")])
+    assert not rep.ok
+    assert any(x.kind == "unknown-link" and "panda_hand" in x.message for x in rep.reporter.diagnostics)
+
+
+def test_unknown_link_in_the_scene_is_located(tmp_path):
+    """`links:` naming a link the URDF lacks (or one without collision geometry) is an error at
+    the value, with the closest link names."""
+    d = _copy(tmp_path)
+    s = (d / "sorting_pr2_setting.yaml").read_text()
+    assert s.count("forearm: r_forearm_link") == 1
+    s = s.replace("forearm: r_forearm_link", "forearm: r_forarm_link").replace(
+        "hand: r_gripper_palm_link", "hand: r_gripper_tool_frame")
+    (d / "sorting_pr2_setting.yaml").write_text(s)
+    line = next(i for i, t in enumerate(s.splitlines(), 1) if "r_forarm_link" in t)
+    text = s.splitlines()[line - 1]
+    rep = check_files([str(d / "sort_random_pr2.pntc")])
+    assert not rep.ok
+    x = _at(rep.reporter.diagnostics, "sorting_pr2_setting.yaml", line, text.index("r_forarm_link") + 1, "unknown-link")
+    assert "'r_forearm_link'" in (x.hint or "")
+    y = _at(rep.reporter.diagnostics, "sorting_pr2_setting.yaml", line, text.index("r_gripper_tool_frame") + 1,
+            "unknown-link")
+    assert "collision geometry" in y.message          # a frame, not a link with a shape
+
+
+def test_a_continuous_joint_is_locked_at_its_angle():
+    """The PR2's left wrist roll (continuous: cos, sin in pinocchio) locked at -0.09 rad: the
+    reduced model places its link as the full model does at that angle."""
+    import numpy as np
+    import pinocchio as pin
+
+    from gnppdsl.geometry.robots import load_robot
+    from gnppdsl.ir.scene import load_scene_file
+
+    spec = load_scene_file(MOBILE / "sorting_random_pr2.yaml").robots["mm"]
+    r = load_robot(spec)
+    assert r.nc == 10 and [c.name for c in r.coords][0] == "root_joint"
+    full = pin.buildModelFromUrdf(r.urdf, pin.JointModelPlanar())
+    q = pin.neutral(full)
+    for j, v in spec.locked.items():
+        jm = full.joints[full.getJointId(j)]
+        q[jm.idx_q:jm.idx_q + jm.nq] = (math.cos(v), math.sin(v)) if jm.nq == 2 else (v,)
+    df, dr = full.createData(), r.model.createData()
+    pin.framesForwardKinematics(full, df, q)
+    pin.framesForwardKinematics(r.model, dr, r.to_pin_q(np.zeros(r.nc)))
+    for ln in ("l_wrist_roll_link", "l_gripper_l_finger_tip_link", "r_gripper_l_finger_tip_link"):
+        a, b = df.oMf[full.getFrameId(ln)], dr.oMf[r.model.getFrameId(ln)]
+        assert np.allclose(a.homogeneous, b.homogeneous, atol=1e-9), ln
+    assert abs(spec.locked["l_wrist_roll_joint"] + 0.09) < 1e-12
