@@ -185,7 +185,9 @@ class Graph:
 
     def relabelled(self, mapping: Mapping) -> "Graph":
         """A copy whose node n is mapping.get(n, n) (`networkx.relabel_nodes(g, mapping,
-        copy=True)`): the new graph holds the mapped objects themselves as its nodes."""
+        copy=True)`): the new graph holds the mapped objects themselves as its nodes; nodes
+        mapped to one node merge (the last one's attributes, the edges' attributes updated in
+        edge order, as networkx does)."""
         g = Graph()
         get = mapping.get
         for n, d in self._node.items():
@@ -199,9 +201,10 @@ class Graph:
                 if v in done:
                     continue
                 mv = get(v, v)
-                dd = dict(d)
-                g._adj[mu][mv] = dd
-                g._adj[mv][mu] = dd
+                dd = g._adj[mu].get(mv)
+                if dd is None:               # (a mapping that merges nodes merges their edges)
+                    dd = g._adj[mu][mv] = g._adj[mv][mu] = {}
+                dd.update(d)
             done.add(u)
         return g
 
