@@ -81,6 +81,7 @@ class Run(ReachabilityCosts):
             self.lifter = Lifter(compiled.factory, self.task, compiled.problem.objects, compiled.object_key)
         self.batcher: Batcher | None = None
         self.graph_factors = 0            # factors of the last plan's graph-NLP (`build_graph`)
+        self.last_optimum = None          # (plan names, values) of the last accepted optimisation phase
         if options.batch_conflicts > 0 and options.algorithm != "oneway" and compiled.object_key is not None:
             self.batcher = Batcher(self.lifter or Lifter(compiled.factory, self.task, compiled.problem.objects,
                                                          compiled.object_key),
@@ -382,8 +383,14 @@ class Run(ReachabilityCosts):
                 res = solver.solve(graph, warm_start=point)
             return res.values if res is not None and res.feasible else None
 
+        # the plan's last optimised point (an active-set round added pair factors since): where the
+        # phase starts first (`optimisation_phase`, `previous`)
+        last = self.last_optimum
+        previous = last[1] if last is not None and last[0] == plan.names else None
         out = optimisation_phase(graph, terms, values, self.compiler, self.compiled.geometry, tol, budget,
-                                 polish)
+                                 polish, previous)
+        if out.accepted:
+            self.last_optimum = (plan.names, out.values)
         self.stats.cost_feasible, self.stats.cost = out.cost_before, out.cost
         self.stats.optimise_time, self.stats.optimised = out.seconds, out.accepted
         if out.cost is not None:
