@@ -101,9 +101,12 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
                     and modes.signature() not in self.results
                 # never lazy: g takes this verdict as its own, and g's key is not marked
                 # unconfirmed (`confirm` would pass a one-start verdict on)
-                # (not screened, `screening`: on clutter_4 the screened keyframes of its last
-                # plan led to 2351 active-set pairs instead of 1670 and 264 s CPU against 103)
-                with overridden(self.solver.options, **local), overridden(self, lazy=False, lazy_large=False):
+                # (screened only above SCREEN_KEYFRAMES_MIN collision factors, `screening`: on
+                # clutter_4 the screened keyframes of its last plan led to 2351 active-set pairs
+                # instead of 1670 and 264 s CPU against 103; stack_32's whole NLP gave no verdict)
+                with overridden(self.solver.options, **local), \
+                        overridden(self, lazy=False, lazy_large=False,
+                                   screen=self.screen or (bool(local) and self.huge(modes))):
                     r0 = self.solve(modes)
                 if one_start and not r0.feasible and r0.starts > 0:
                     # ... but the verdict of `local`'s one start is unconfirmed: the search can

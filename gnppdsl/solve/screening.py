@@ -51,22 +51,40 @@ start (nothing much to leave out: the whole NLP is solved at once)."""
 SCREEN_ROUNDS = 4
 """Screened NLPs per graph before the whole graph is solved instead."""
 
+SCREEN_KEYFRAMES_MIN = 5000
+"""Collision factors of a plan's own mode-switch graph (its keyframes, solved after the
+relaxations) above which it is screened too. Below it, not (clutter_4, ~2000 pairs: screened
+keyframes led to more active-set pairs and 264 s CPU against 103). stack_32's has 18356
+(stack_16: 2588, the Lab problems a few hundred): solved whole, its NLP ran > 100 s CPU
+without a verdict (21354 factors); screened, 1308 of them are near at the relaxation's point."""
+
 
 class CollisionScreen(CheckMemory):
     """`screened`: the feasibility check's collision screening (see the module docstring).
 
     Only where the caller sets `screen` (with `overridden`): the keyframes joined with a motion
     (`keyframes_with_motions`) and the active set's repair of a round with few pairs
-    (`coverage`) -- starts that solve all but (some of) the collisions. Not the plan's own
-    keyframes after its relaxations: on clutter_4 that run took 264 s CPU against 103 (its
-    last plan's screened keyframes led to 2351 active-set pairs instead of 1670); on stack_32
-    the screened keyframes stall (docs/design.md). Why not every graph: Algorithm 1's levels and slices are
+    (`coverage`) -- starts that solve all but (some of) the collisions -- and a plan's own
+    keyframes after its relaxations when they are `huge` (SCREEN_KEYFRAMES_MIN). Not below
+    that: on clutter_4 that run took 264 s CPU against 103 (its last plan's screened keyframes
+    led to 2351 active-set pairs instead of 1670). Why not every graph: Algorithm 1's levels and slices are
     solved to find a conflict, mostly infeasible, where a screened NLP only adds a failed run
     and moves the convergence points the search goes on from (clutter_4 with every graph
     screened: a screened no_robot_time_traj level of the first, infeasible plan failed and
     was solved whole; the solve took longer than without screening)."""
 
     screen = False                       # set around the solves that may be screened
+
+    @staticmethod
+    def huge(g: GraphNLP) -> bool:
+        """Has g at least SCREEN_KEYFRAMES_MIN collision factors (a plan's own keyframes that
+        are screened, `FeasibilityCheck.solve`)?"""
+        n = 0
+        for r in g.factor_refs:
+            n += "collision" in g.factor(r).tags
+            if n >= SCREEN_KEYFRAMES_MIN:
+                return True
+        return False
 
     def screened(self, g: GraphNLP, warm: dict) -> FeasibilityResult | None:
         """A feasible result of g from NLPs with only its near collision factors, verified on
@@ -105,6 +123,11 @@ class CollisionScreen(CheckMemory):
             iters += r.iterations
             starts += r.starts
             run.stats.screened_solves += 1
+            if not r.feasible and not self.solver.options.distance_curvature:
+                r = self.screened_solve(sub, point, distance_curvature=True)
+                iters += r.iterations
+                starts += r.starts
+                run.stats.screened_solves += 1
             run.stats.screened_dropped += len(collision) - len(near)
             if not r.feasible:
                 run.say(f"  {g.name}: screened NLP ({len(near)} of {len(collision)} collision factors) "
@@ -142,17 +165,34 @@ class CollisionScreen(CheckMemory):
         finally:
             run.stats.reuse_time += time.perf_counter() - t0
 
-    def screened_solve(self, sub: GraphNLP, point: dict) -> FeasibilityResult:
-        """One screened NLP from `point`: one start (no restarts), as `local_solve`."""
+    def screened_solve(self, sub: GraphNLP, point: dict, distance_curvature: bool = False) -> FeasibilityResult:
+        """One screened NLP from `point`: one start (no restarts), as `local_solve`.
+
+        `distance_curvature`: with the signed-distance rows' second derivatives in ipopt's
+        Hessian (a solver of its own: assembled NLPs are cached by vertex set, not by that
+        option), the second try of a screened NLP that failed with them linearised (the
+        setting `distance_curvature = false`). Why: the screened keyframes of stack_32 have a
+        hand 2.7 cm inside the tower built one step before (the relaxation without collisions
+        picks the next block right beside it); linearised, ipopt stalled there (180 iterations,
+        37.7 s CPU, violation 0.0365 unchanged; its slice of steps 11-14 alone: 180 iterations,
+        28.5 s), with the exact Hessian the slice is solved in 18 iterations (6.4 s). A failed
+        screened NLP is no verdict either way; a second run costs one more NLP of the screened
+        size where the alternative is the whole graph."""
         run = self.run
-        opts = self.solver.options
+        solver = self.solver
+        if distance_curvature:
+            solver = getattr(self, "_curved_solver", None)
+            if solver is None:
+                solver = self._curved_solver = run.new_solver()
+                solver.options.distance_curvature = True
+        opts = solver.options
         opts.time_limit = max(0.05, run.remaining())
         with overridden(opts, restarts=0):
-            r = self.solver.solve(sub, warm_start=point, seed=run.options.seed)
+            r = solver.solve(sub, warm_start=point, seed=run.options.seed)
         run.nlp_calls += 1
         if not r.feasible and (time.perf_counter() >= run.deadline or "walltime" in str(r.status).lower()):
             raise TimeUp()           # cut short by the time limit: no verdict, as `local_solve`
         return r
 
 
-__all__ = ["CollisionScreen", "SCREEN_DISTANCE", "SCREEN_MIN_FACTORS"]
+__all__ = ["CollisionScreen", "SCREEN_DISTANCE", "SCREEN_KEYFRAMES_MIN", "SCREEN_MIN_FACTORS"]

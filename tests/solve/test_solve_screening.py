@@ -98,8 +98,8 @@ def test_a_screened_point_that_breaks_a_dropped_factor_is_not_accepted(monkeypat
     real = FeasibilityCheck.screened_solve
     lies = []
 
-    def lying(self, sub, point):
-        r = real(self, sub, point)
+    def lying(self, sub, point, **kw):
+        r = real(self, sub, point, **kw)
         if r.feasible:
             values = dict(r.values)
             for v in values:
@@ -127,8 +127,8 @@ def test_a_failed_screened_nlp_is_no_verdict(monkeypatch):
     real = FeasibilityCheck.screened_solve
     failed = []
 
-    def failing(self, sub, point):
-        r = real(self, sub, point)
+    def failing(self, sub, point, **kw):
+        r = real(self, sub, point, **kw)
         failed.append(sub.name)
         return replace(r, feasible=False, max_violation=max(r.max_violation, 1.0))
 
@@ -151,3 +151,66 @@ def test_motions_without_idle_trajectories_carry_no_fixed_factor(monkeypatch):
         for ref in g.factor_refs:
             assert any(u.lower is None or u.lower != u.upper for u in g.graph.neighbors(ref)), \
                 (g.name, g.factor(ref).label)
+
+
+def test_a_screened_nlp_that_fails_linearised_is_tried_once_with_the_distances_curvature(monkeypatch):
+    """With `distance_curvature = false`, a screened NLP that fails (here: the linearised run is
+    made to fail) is solved once more from the same point by a solver whose distance rows keep
+    their second derivatives; its answer is accepted only after numpy checks every factor of
+    the whole graph. With the setting on, there is no second try (nothing else to try)."""
+    _screen_everything(monkeypatch)
+    real = FeasibilityCheck.screened_solve
+    calls = []
+
+    def linearised_fails(self, sub, point, distance_curvature=False):
+        r = real(self, sub, point, distance_curvature=distance_curvature)
+        solver = self._curved_solver if distance_curvature else self.solver
+        calls.append((sub.name, distance_curvature, solver.options.distance_curvature, dict(point)))
+        if not distance_curvature:
+            return replace(r, feasible=False, max_violation=max(r.max_violation, 1.0))
+        return r
+
+    monkeypatch.setattr(FeasibilityCheck, "screened_solve", linearised_fails)
+    answers = _spy_screened(monkeypatch)
+    _solved(replace(OPTIONS, distance_curvature=False))
+    tries = [c for c in calls if c[1]]
+    assert tries, "no second try with the distances' curvature"
+    assert all(c[2] for c in tries) and all(not c[2] for c in calls if not c[1])
+    # each second try starts where the failed first one started
+    for i, c in enumerate(calls):
+        if c[1]:
+            first = calls[i - 1]
+            assert not first[1] and first[0] == c[0]
+            assert all(np.array_equal(np.asarray(first[3][v]), np.asarray(c[3][v])) for v in c[3])
+    assert answers
+    for _, g, r in answers:
+        point = {v: r.values[v] for v in g.variables}
+        assert max_violation(g.factor_instances, point)[0] <= 1e-6
+    calls.clear()
+    _solved(replace(OPTIONS, distance_curvature=True))
+    assert calls and not [c for c in calls if c[1]]
+
+
+def test_a_plans_own_keyframes_are_screened_only_when_huge(monkeypatch):
+    """The mode-switch graph of the plan itself (solved before its motions) is screened when
+    it has at least SCREEN_KEYFRAMES_MIN collision factors (stack_32), not below (clutter_4)."""
+    _screen_everything(monkeypatch)
+    seen = _spy_nlps(monkeypatch)
+
+    def solved():
+        # an initial guess for every block pose: the screen needs a start for every variable
+        compiled = occupied_problem(waypoints=4)
+        compiled.factory.initial_guess = lambda v, states=None: [1.5] if v.kind == "pose" else None
+        res = solve_compiled(compiled, OPTIONS)
+        assert res.solved and res.stats.N == 4, res.message
+        check_solution(compiled, res)
+        return res
+
+    monkeypatch.setattr(screening, "SCREEN_KEYFRAMES_MIN", 10 ** 9)
+    solved()
+    assert not [g for g, _ in seen if g.name.startswith("G[modes]{screened")]
+    seen.clear()
+    monkeypatch.setattr(screening, "SCREEN_KEYFRAMES_MIN", 1)
+    solved()
+    own = [g for g, _ in seen if g.name.startswith("G[modes]{screened")]
+    assert own
