@@ -34,8 +34,6 @@ import itertools
 from dataclasses import dataclass, field, replace
 from typing import Callable, Mapping, Sequence
 
-from networkx.algorithms import isomorphism
-
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.compile.ground import var_name
 from gnppdsl.compile.sas import PartialState, SASTask
@@ -182,6 +180,8 @@ class Lifter:
         candidates = [f for f in self.factory.rule_factors(renamed, sorted(wanted)) if f.template in templates]
         if len(candidates) < len(shifted):
             return None
+        from networkx.algorithms import isomorphism     # with the semantic graphs (`semantic._nx`)
+
         target = anonymous_graph(candidates, self.object_key)
         gm = isomorphism.GraphMatcher(target, pattern, node_match=_same_label, edge_match=_same_slots)
         for match in gm.subgraph_monomorphisms_iter():

@@ -28,14 +28,23 @@ import hashlib
 import weakref
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable
-
-import networkx as nx
-from networkx.algorithms import isomorphism
+from functools import lru_cache
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.conflicts.mapping import factors_of
 from gnppdsl.ir.expr import Obj
+
+if TYPE_CHECKING:
+    import networkx as nx
+
+
+def _nx() -> Any:
+    """networkx, imported when a semantic graph is first built or matched: a solve that learns
+    no conflict and keeps no database never needs it (~0.1 s CPU to import; `gnppdsl.nlp.graph`)."""
+    import networkx
+
+    return networkx
 
 _BODY_HASHES: dict[Any, str] = {}
 
@@ -119,7 +128,7 @@ def anonymous_graph(factors: Iterable[FactorInstance], object_key: ObjectKey) ->
     template, arity and `anonymous_text` body; edges by slots. Isomorphic anonymous graphs are
     the same NLP up to renaming objects of equal geometry (used to lift conflicts,
     `gnppdsl.conflicts.lifting`; the database keeps the named labels of `semantic_graph`)."""
-    g = nx.Graph()
+    g = _nx().Graph()
     try:
         texts = _ANON.setdefault(object_key, {})
     except TypeError:                       # not weakly referenceable (a builtin's method): no cache
@@ -167,7 +176,7 @@ class SemanticGraph:
 
     def wl_hash(self) -> str:
         """Weisfeiler-Lehman hash: equal for isomorphic graphs (used to find duplicates fast)."""
-        return nx.weisfeiler_lehman_graph_hash(self.graph, node_attr="label", edge_attr="slots")
+        return _nx().weisfeiler_lehman_graph_hash(self.graph, node_attr="label", edge_attr="slots")
 
     def to_json(self) -> dict:
         return {
@@ -177,7 +186,7 @@ class SemanticGraph:
 
     @staticmethod
     def from_json(data: dict) -> "SemanticGraph":
-        g = nx.Graph()
+        g = _nx().Graph()
         for n, label in data["nodes"]:
             g.add_node(n, label=label)
         for u, v, slots in data["edges"]:
@@ -209,7 +218,7 @@ def semantic_graph(subgraph: Any, variables: Iterable[VarInstance] = (),
     def vid(v: VarInstance) -> str:
         return f"x|{v.key}|{v.step - t0}"
 
-    g = nx.Graph()
+    g = _nx().Graph()
     origin: dict[str, FactorInstance] = {}
     for v in all_vars:
         if vid(v) not in g:
@@ -326,27 +335,33 @@ def prefilter(pattern: "SemanticGraph", target: "SemanticGraph") -> dict[int, fr
     return _compatible_classes(pp, tp)
 
 
-class _Matcher(isomorphism.GraphMatcher):
-    """VF2 (G1 = target, G2 = pattern) whose node test also requires compatible signature
-    classes -- a necessary condition, so it prunes without changing the search order or the
-    first monomorphism found -- and which counts tested pairs against a budget."""
+@lru_cache(maxsize=1)
+def _matcher_class() -> type:
+    """`_Matcher`, defined on first use (it subclasses networkx's GraphMatcher: see `_nx`)."""
 
-    def __init__(self, target: "SemanticGraph", pattern: "SemanticGraph",
-                 compat: dict[int, frozenset[int]], budget: int | None) -> None:
-        super().__init__(target.graph, pattern.graph, node_match=_node_match, edge_match=_edge_match)
-        self._tcls = _profile(target)["node_cls"]
-        self._pcls = _profile(pattern)["node_cls"]
-        self._compat = compat
-        self._budget = budget
-        self.expansions = 0
+    class _Matcher(_nx().algorithms.isomorphism.GraphMatcher):
+        """VF2 (G1 = target, G2 = pattern) whose node test also requires compatible signature
+        classes -- a necessary condition, so it prunes without changing the search order or the
+        first monomorphism found -- and which counts tested pairs against a budget."""
 
-    def syntactic_feasibility(self, G1_node, G2_node):  # noqa: N803 (networkx's names)
-        self.expansions += 1
-        if self._budget is not None and self.expansions > self._budget:
-            raise BudgetExceeded
-        if self._tcls[G1_node] not in self._compat[self._pcls[G2_node]]:
-            return False
-        return super().syntactic_feasibility(G1_node, G2_node)
+        def __init__(self, target: "SemanticGraph", pattern: "SemanticGraph",
+                     compat: dict[int, frozenset[int]], budget: int | None) -> None:
+            super().__init__(target.graph, pattern.graph, node_match=_node_match, edge_match=_edge_match)
+            self._tcls = _profile(target)["node_cls"]
+            self._pcls = _profile(pattern)["node_cls"]
+            self._compat = compat
+            self._budget = budget
+            self.expansions = 0
+
+        def syntactic_feasibility(self, G1_node, G2_node):  # noqa: N803 (networkx's names)
+            self.expansions += 1
+            if self._budget is not None and self.expansions > self._budget:
+                raise BudgetExceeded
+            if self._tcls[G1_node] not in self._compat[self._pcls[G2_node]]:
+                return False
+            return super().syntactic_feasibility(G1_node, G2_node)
+
+    return _Matcher
 
 
 def monomorphism(pattern: SemanticGraph, target: SemanticGraph,
@@ -369,7 +384,7 @@ def monomorphism(pattern: SemanticGraph, target: SemanticGraph,
         stats.prefiltered += 1
         return None
     stats.vf2_runs += 1
-    gm = _Matcher(target, pattern, compat, budget)
+    gm = _matcher_class()(target, pattern, compat, budget)
     try:
         for mapping in gm.subgraph_monomorphisms_iter():
             return mapping
@@ -389,4 +404,4 @@ def contains(target: SemanticGraph, pattern: SemanticGraph) -> bool:
 def isomorphic(a: SemanticGraph, b: SemanticGraph) -> bool:
     if a.labels != b.labels or a.n_edges != b.n_edges:
         return False
-    return nx.is_isomorphic(a.graph, b.graph, node_match=_node_match, edge_match=_edge_match)
+    return _nx().is_isomorphic(a.graph, b.graph, node_match=_node_match, edge_match=_edge_match)

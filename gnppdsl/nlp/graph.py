@@ -1,4 +1,4 @@
-"""The graph-NLP G(<s_0 ... s_n>) as a networkx bipartite graph (paper 000, Sec. IV).
+"""The graph-NLP G(<s_0 ... s_n>) as a bipartite graph (paper 000, Sec. IV).
 
 Vertices: variable vertices x_i^k keyed by their `VarInstance`, and factor vertices keyed by
 `FactorRef(index)` (the factor's position in the factory's list, shared by every subgraph so
@@ -17,11 +17,223 @@ adds `rel_step` = step - first step of the graph.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Iterator, Sequence
-
-import networkx as nx
+from typing import Any, Hashable, Iterable, Iterator, Mapping, Sequence
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
+
+
+class _NodeView:
+    """`graph.nodes`: iterate, `in`, `len`, `nodes[n]` (the attribute dict), `nodes(data=True)`."""
+
+    __slots__ = ("_node",)
+
+    def __init__(self, node: dict) -> None:
+        self._node = node
+
+    def __iter__(self) -> Iterator:
+        return iter(self._node)
+
+    def __len__(self) -> int:
+        return len(self._node)
+
+    def __contains__(self, n: Any) -> bool:
+        return n in self._node
+
+    def __getitem__(self, n: Any) -> dict:
+        return self._node[n]
+
+    def __call__(self, data: bool = False) -> Iterator:
+        return iter(self._node.items()) if data else iter(self._node)
+
+
+class _EdgeView:
+    """`graph.edges`: `edges[u, v]` (the attribute dict), `edges(data=True)` (each edge once)."""
+
+    __slots__ = ("_adj",)
+
+    def __init__(self, adj: dict) -> None:
+        self._adj = adj
+
+    def __getitem__(self, uv: tuple) -> dict:
+        u, v = uv
+        return self._adj[u][v]
+
+    def __call__(self, data: bool = False) -> Iterator:
+        seen: set = set()
+        for u, nbrs in self._adj.items():
+            for v, d in nbrs.items():
+                if v not in seen:
+                    yield (u, v, d) if data else (u, v)
+            seen.add(u)
+
+    def __iter__(self) -> Iterator:
+        return self()
+
+    def __len__(self) -> int:
+        return sum(len(nbrs) + (u in nbrs) for u, nbrs in self._adj.items()) // 2
+
+
+class Graph:
+    """An undirected graph with node and edge attribute dicts: the part of `networkx.Graph`'s
+    interface graph-NLPs use (`add_node`, `add_nodes_from`, `add_edge`, `add_edges_from`,
+    `has_edge`, `remove_nodes_from`, `nodes`, `edges`, `adj`, `neighbors`, `degree`,
+    `number_of_nodes`, `copy`, iteration and `in`), with networkx's semantics: attribute dicts
+    are copied on insertion (their values shared), an edge's dict is shared by both ends.
+    `to_networkx()` gives the networkx graph for what needs its algorithms."""
+
+    __slots__ = ("_node", "_adj")
+
+    def __init__(self) -> None:
+        self._node: dict[Hashable, dict] = {}
+        self._adj: dict[Hashable, dict[Hashable, dict]] = {}
+
+    # -- construction -------------------------------------------------------------------------
+    def add_node(self, n: Hashable, **attr: Any) -> None:
+        if n in self._node:
+            self._node[n].update(attr)
+        else:
+            self._node[n] = attr
+            self._adj[n] = {}
+
+    def add_nodes_from(self, nodes: Iterable) -> None:
+        """Nodes, or (node, attribute dict) pairs (the dict copied)."""
+        for item in nodes:
+            if type(item) is tuple and len(item) == 2 and isinstance(item[1], Mapping):
+                n, d = item
+            else:
+                n, d = item, {}
+            if n in self._node:
+                self._node[n].update(d)
+            else:
+                self._node[n] = dict(d)
+                self._adj[n] = {}
+
+    def add_edge(self, u: Hashable, v: Hashable, **attr: Any) -> None:
+        for n in (u, v):
+            if n not in self._node:
+                self._node[n] = {}
+                self._adj[n] = {}
+        d = self._adj[u].get(v)
+        if d is None:
+            d = {}
+        d.update(attr)
+        self._adj[u][v] = d
+        self._adj[v][u] = d
+
+    def add_edges_from(self, edges: Iterable[tuple]) -> None:
+        """(u, v) pairs or (u, v, attribute dict) triples (the dict copied into the edge's)."""
+        for e in edges:
+            if len(e) == 3:
+                self.add_edge(e[0], e[1], **e[2])
+            else:
+                self.add_edge(e[0], e[1])
+
+    def remove_nodes_from(self, nodes: Iterable) -> None:
+        for n in nodes:
+            nbrs = self._adj.pop(n, None)
+            if nbrs is None:
+                continue
+            del self._node[n]
+            for m in nbrs:
+                if m != n:
+                    del self._adj[m][n]
+
+    # -- queries ------------------------------------------------------------------------------
+    @property
+    def nodes(self) -> _NodeView:
+        return _NodeView(self._node)
+
+    @property
+    def edges(self) -> _EdgeView:
+        return _EdgeView(self._adj)
+
+    @property
+    def adj(self) -> dict[Hashable, dict[Hashable, dict]]:
+        return self._adj
+
+    def __getitem__(self, n: Hashable) -> dict[Hashable, dict]:
+        return self._adj[n]
+
+    def has_edge(self, u: Hashable, v: Hashable) -> bool:
+        return u in self._adj and v in self._adj[u]
+
+    def neighbors(self, n: Hashable) -> Iterator:
+        return iter(self._adj[n])
+
+    def degree(self, n: Hashable) -> int:
+        nbrs = self._adj[n]
+        return len(nbrs) + (n in nbrs)           # a self-loop counts twice, as in networkx
+
+    def number_of_nodes(self) -> int:
+        return len(self._node)
+
+    def __len__(self) -> int:
+        return len(self._node)
+
+    def __iter__(self) -> Iterator:
+        return iter(self._node)
+
+    def __contains__(self, n: Any) -> bool:
+        try:
+            return n in self._node
+        except TypeError:                        # unhashable: not a node (networkx says False)
+            return False
+
+    def copy(self) -> "Graph":
+        """Node and edge attribute dicts copied (values shared), as `networkx.Graph.copy`."""
+        return self.relabelled({})
+
+    def relabelled(self, mapping: Mapping) -> "Graph":
+        """A copy whose node n is mapping.get(n, n) (`networkx.relabel_nodes(g, mapping,
+        copy=True)`): the new graph holds the mapped objects themselves as its nodes; nodes
+        mapped to one node merge (the last one's attributes, the edges' attributes updated in
+        edge order, as networkx does)."""
+        g = Graph()
+        get = mapping.get
+        for n, d in self._node.items():
+            m = get(n, n)
+            g._node[m] = dict(d)
+            g._adj[m] = {}
+        done: set = set()
+        for u, nbrs in self._adj.items():
+            mu = get(u, u)
+            for v, d in nbrs.items():
+                if v in done:
+                    continue
+                mv = get(v, v)
+                dd = g._adj[mu].get(mv)
+                if dd is None:               # (a mapping that merges nodes merges their edges)
+                    dd = g._adj[mu][mv] = g._adj[mv][mu] = {}
+                dd.update(d)
+            done.add(u)
+        return g
+
+    def to_networkx(self) -> Any:
+        """The same graph as a `networkx.Graph` (imports networkx)."""
+        import networkx as nx
+
+        g = nx.Graph()
+        g.add_nodes_from(self._node.items())
+        g.add_edges_from(self.edges(data=True))
+        return g
+
+
+def connected_components(graph: Graph) -> Iterator[set]:
+    """The node sets of `graph`'s connected components (`networkx.connected_components`)."""
+    adj = graph.adj
+    seen: set = set()
+    for start in adj:
+        if start in seen:
+            continue
+        comp = {start}
+        todo = [start]
+        while todo:
+            for m in adj[todo.pop()]:
+                if m not in comp:
+                    comp.add(m)
+                    todo.append(m)
+        seen |= comp
+        yield comp
 
 
 @dataclass(frozen=True, order=True)
@@ -35,9 +247,9 @@ class FactorRef:
 
 
 class GraphNLP:
-    """A (sub)graph-NLP: networkx graph + the factor list its factor vertices point into."""
+    """A (sub)graph-NLP: a `Graph` + the factor list its factor vertices point into."""
 
-    def __init__(self, factors: Sequence[FactorInstance], graph: nx.Graph | None = None,
+    def __init__(self, factors: Sequence[FactorInstance], graph: Graph | None = None,
                  name: str = "G", initial_guess: dict | None = None, restart_guess: dict | None = None):
         self.factors: tuple[FactorInstance, ...] = tuple(factors)
         self.name = name
@@ -48,7 +260,7 @@ class GraphNLP:
         # base placed next to the object it picks: `gnppdsl.compile.placement`), shared too
         self.restart_guess: dict = restart_guess if restart_guess is not None else {}
         if graph is None:
-            graph = nx.Graph()
+            graph = Graph()
             for i, f in enumerate(self.factors):
                 ref = FactorRef(i)
                 graph.add_node(ref, bipartite=1, vertex="factor", label=f.template,
@@ -84,7 +296,7 @@ class GraphNLP:
         `subgraph().copy()` cost 0.4 ms per derivation on planar plans, a quarter of the
         loop's time outside ipopt on p5."""
         keep = {n for n in nodes if n in self.graph}
-        g = nx.Graph()
+        g = Graph()
         node_data, adj = self.graph.nodes, self.graph.adj
         g.add_nodes_from((n, node_data[n]) for n in keep)
         g.add_edges_from((f, v, d) for f in keep if isinstance(f, FactorRef)
@@ -136,7 +348,7 @@ class GraphNLP:
         """Hashable identity of the vertex set (for memoising solves of the same subgraph)."""
         return frozenset(self.graph.nodes)
 
-    def relative_labels(self) -> nx.Graph:
+    def relative_labels(self) -> Graph:
         """A copy with `rel_step` = step - first step, for matching at any time offset."""
         g = self.graph.copy()
         first = min((d["step"] for _, d in g.nodes(data=True)), default=0)
@@ -187,7 +399,7 @@ class GraphNLP:
         """Connected components (Property 4.5), ordered by first step then size. Components
         without factors have no constraint and are always feasible; skipped by default."""
         comps = []
-        for nodes in nx.connected_components(self.graph):
+        for nodes in connected_components(self.graph):
             if with_factors_only and not any(isinstance(n, FactorRef) for n in nodes):
                 continue
             comps.append(self._derive(nodes, f"#{len(comps)}"))

@@ -9,13 +9,11 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING
 
-import networkx as nx
-
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.conflicts.database import names_of
 from gnppdsl.conflicts.mapping import to_partial_states
 from gnppdsl.ir.expr import Slot
-from gnppdsl.nlp.graph import GraphNLP
+from gnppdsl.nlp.graph import Graph, GraphNLP, connected_components
 from gnppdsl.solve.confirmation import Confirmation
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.inferred_verdicts import InferredVerdicts
@@ -214,12 +212,12 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
         chain takes the newest value: it comes from the graph solved last, which carried the
         most of the plan's factors that matter now."""
         warm = {v: self.values[v] for v in g.variables if v in self.values}
-        chains = nx.Graph()
+        chains = Graph()
         for ref in g.factor_refs:
             pair = equality_pair(g.factor(ref))
             if pair is not None and all(v in warm for v in pair):
                 chains.add_edge(*pair)
-        for chain in nx.connected_components(chains):
+        for chain in connected_components(chains):
             newest = max(chain, key=lambda v: (self.values.stamp[v], -v.step))
             for v in chain:
                 if self.values.stamp[v] < self.values.stamp[newest]:

@@ -59,9 +59,7 @@ class GraphNLPView:
         """A copy of g whose variable vertices are the given replacement objects (equal to the
         originals, e.g. with other bounds, which do not take part in equality): the solver
         reads bounds from the graph's vertices and maps factor slots to them by equality."""
-        import networkx as nx
-
-        h = nx.relabel_nodes(g.graph, {v: r for v, r in replacements.items() if v in g.graph}, copy=True)
+        h = g.graph.relabelled({v: r for v, r in replacements.items() if v in g.graph})
         return type(g)(g.factors, h, g.name, g.initial_guess, g.restart_guess)
 
 

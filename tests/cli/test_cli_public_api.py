@@ -67,6 +67,20 @@ def test_the_command_line_loads_no_solver_library_before_a_command_needs_it():
     assert "usage: gnpp solve" in out.stdout          # the help ran
     assert out.stderr.strip().splitlines()[-1] == "[]", out.stderr
 
+
+def test_a_solve_without_conflicts_does_not_import_networkx():
+    """A graph-NLP is `gnppdsl.nlp.graph.Graph`, not a networkx graph: a solve that learns no
+    conflict (planar p1) never imports networkx (~0.1 s CPU of every cold `gnpp solve`, issue
+    20); the conflict matching imports it when it runs."""
+    code = ("import sys\nimport gnppdsl.cli.main as m\n"
+            f"rc = m.main(['solve', {str(P1)!r}, '--quiet'])\n"
+            "print(rc, 'networkx' in sys.modules, 'casadi' in sys.modules, file=sys.stderr)\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         check=True, cwd=ROOT)
+    assert "solved" in out.stdout
+    assert out.stderr.strip().splitlines()[-1] == "0 False True", out.stderr
+
 def _spies(monkeypatch) -> list:
     """Spies on the four public names (calling through); the list records (name, args)."""
     calls: list = []

@@ -1,10 +1,12 @@
 """GraphNLP: Definition 4.2 subgraphs, relaxations, components, time slices."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import networkx as nx
 
 from gnppdsl.compile.factors import VarInstance
-from gnppdsl.nlp.graph import FactorRef, GraphNLP
+from gnppdsl.nlp.graph import FactorRef, Graph, GraphNLP, connected_components
 
 from nlp_toys import chain, discs, factor, no_overlap, pose, in_box
 from gnppdsl.ir.expr import Constraint, Num, Slot
@@ -13,7 +15,8 @@ from gnppdsl.ir.expr import Constraint, Num, Slot
 def test_bipartite_structure_and_labels():
     vs, fs = discs(3)
     g = GraphNLP(fs)
-    assert nx.is_bipartite(g.graph)
+    assert nx.is_bipartite(g.graph.to_networkx())
+    assert all(isinstance(u, FactorRef) != isinstance(v, FactorRef) for u, v in g.graph.edges())
     assert g.n_factors == 6 and set(g.variables) == set(vs)
     for r, f in g.iter_factors():
         assert set(g.neighbours(r)) == set(f.variables)
@@ -103,3 +106,64 @@ def test_subgraph_invariants_on_random_graphs(n, seed, tags):
     assert all(lo <= s.factor(x).step <= s.factor(x).step + s.factor(x).span - 1 <= hi
                for x in s.factor_refs)
     assert set(s.graph) <= set(g.graph)
+
+
+@settings(max_examples=80, deadline=None)
+@given(ops=st.lists(st.tuples(st.sampled_from(["node", "edge", "edges", "remove"]),
+                              st.integers(0, 7), st.integers(0, 7), st.integers(0, 3)), max_size=40),
+       mapping=st.dictionaries(st.integers(0, 7), st.integers(10, 17), max_size=4))
+def test_graph_behaves_as_networkx_graph(ops, mapping):
+    """`Graph` (what a GraphNLP holds instead of networkx.Graph) against networkx.Graph as the
+    oracle: the same operations give the same nodes, attributes, edges, degrees, neighbours,
+    components, copies and relabellings (nodes as the mapped objects)."""
+    ours, ref = Graph(), nx.Graph()
+    for op, u, v, a in ops:
+        if op == "node":
+            ours.add_node(u, a=a)
+            ref.add_node(u, a=a)
+        elif op == "edge":
+            ours.add_edge(u, v, w=a)
+            ref.add_edge(u, v, w=a)
+        elif op == "edges":
+            ours.add_edges_from([(u, v, {"k": a}), (v, (v + 1) % 8)])
+            ref.add_edges_from([(u, v, {"k": a}), (v, (v + 1) % 8)])
+            ours.add_nodes_from([(u, {"b": a}), 7 - v])
+            ref.add_nodes_from([(u, {"b": a}), 7 - v])
+        else:
+            ours.remove_nodes_from([u, v])
+            ref.remove_nodes_from([u, v])
+
+    def same(g: Graph, h) -> None:
+        assert dict(g.nodes(data=True)) == dict(h.nodes(data=True))
+        assert list(g) == list(h) and len(g) == g.number_of_nodes() == h.number_of_nodes()
+        assert {frozenset((x, y)): d for x, y, d in g.edges(data=True)} == \
+            {frozenset((x, y)): d for x, y, d in h.edges(data=True)}
+        assert len(g.edges) == h.number_of_edges()
+        for n in h:
+            assert n in g and g.degree(n) == h.degree(n)
+            assert set(g.neighbors(n)) == set(h.neighbors(n)) == set(g.adj[n])
+            for m in h[n]:
+                assert g.has_edge(n, m) and g.edges[n, m] == h.edges[n, m]
+        assert sorted(map(sorted, connected_components(g))) == sorted(map(sorted, nx.connected_components(h)))
+
+    same(ours, ref)
+    same(ours.to_networkx(), ref)
+    c = ours.copy()
+    same(c, ref)
+    for n in list(c)[:1]:
+        c.nodes[n]["new"] = 1                   # a copy's attribute dicts are its own
+        assert "new" not in ours.nodes[n]
+    same(ours.relabelled(mapping), nx.relabel_nodes(ref, mapping, copy=True))
+    assert [] not in ours and 99 not in ours
+
+
+def test_relabelled_graph_holds_the_replacement_objects():
+    """`GraphNLPView.with_variables` replaces variables by equal objects with other bounds: the
+    relabelled graph's vertices and neighbours are those objects, not the originals."""
+    vs, fs = discs(2)
+    g = GraphNLP(fs)
+    fixed = {v: replace(v, lower=(0.0,) * v.dim, upper=(0.0,) * v.dim) for v in vs}
+    h = g.graph.relabelled(fixed)
+    assert all(v == fixed[v] for v in vs)
+    assert {id(n) for n in h if isinstance(n, VarInstance)} == {id(w) for w in fixed.values()}
+    assert all(id(u) in {id(w) for w in fixed.values()} for r in g.factor_refs for u in h.neighbors(r))
