@@ -17,33 +17,16 @@ import numpy as np
 from gnppdsl import interrupt
 
 
-class IterationMonitor(ca.Callback):
-    """ipopt iteration callback: stops a run as soon as the *real* constraints hold (a
-    feasibility verdict needs no optimal regulariser), or when the violation has not improved
-    by 1 % for `patience` iterations (nonsmooth distances, e.g. penetrating boxes, make ipopt
-    wander until max_iter; measured 500 iterations ~ 0.5-2 s per run); progress is the total
-    violation (the L1 norm the elastic objective minimises). The real rows are
-    recovered from the elastic ones: h = g + s (inequalities), h = g + s_p - s_m (equalities)."""
+class _IpoptCallback(ca.Callback):
+    """What both monitors share: casadi's signature of an nlpsol iteration callback (the
+    solver's outputs in, one integer out: 1 stops the run) with the iterate sized `n_x`, the
+    rows `n_g` and the parameters' multipliers `n_p`, and the buffer protocol (iterate, objective
+    and rows as views of ipopt's memory) handed to the subclass's `_decide(x, f, g)`."""
 
-    def __init__(self, name: str, n_x: int, n_in: int, n_eq: int, n_g: int, n_p: int):
-        ca.Callback.__init__(self)
-        self.n_x, self.n_in, self.n_eq, self.n_g, self.n_p = n_x, n_in, n_eq, n_g, n_p
-        self.n_z = n_x + n_in + 2 * n_eq
-        self.reset(0.0, 0)
-        self.construct(name, {})
-
-    def reset(self, stop_below: float, patience: int, deadline: float = math.inf, limit: int = 0) -> None:
-        """`limit` > 0: stop the run after that many iterations (`SolverOptions.iteration_budget`:
-        what is left of it, which ipopt's `max_iter`, fixed at assembly, cannot say). `deadline` (time.perf_counter() clock): stop the run at the first iteration after
-        it. Why here and not only ipopt's `max_wall_time`: that option is fixed when the NLP
-        is assembled, and an assembled NLP is cached and solved again later (restarts, the
-        polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly. Only
-        NLPs with a monitor (early_stop: by default those with geometry primitives, whose
-        iterations are the slow ones) have this check; the others keep `max_wall_time`."""
-        self.stop_below, self.patience, self.deadline = stop_below, patience, deadline
-        self.best, self.best_z, self.since, self.stalled = np.inf, None, 0, False
-        self.timed_out = False
-        self.limit, self.count = limit, 0
+    def _sizes(self, n_x: int, n_g: int, n_p: int | None = None) -> None:
+        self._dense = {"x": n_x, "lam_x": n_x, "g": n_g, "lam_g": n_g}
+        if n_p is not None:
+            self._dense["lam_p"] = n_p
 
     def get_n_in(self):
         return ca.nlpsol_n_out()
@@ -61,12 +44,8 @@ class IterationMonitor(ca.Callback):
         n = ca.nlpsol_out(i)
         if n == "f":
             return ca.Sparsity.scalar()
-        if n in ("x", "lam_x"):
-            return ca.Sparsity.dense(self.n_z)
-        if n in ("g", "lam_g"):
-            return ca.Sparsity.dense(self.n_g)
-        if n == "lam_p":
-            return ca.Sparsity.dense(self.n_p)
+        if n in self._dense:
+            return ca.Sparsity.dense(self._dense[n])
         return ca.Sparsity(0, 0)
 
     def has_eval_buffer(self):
@@ -79,12 +58,48 @@ class IterationMonitor(ca.Callback):
         keyframe NLP of `bench_komo.py` (perf: CallbackInternal::eval_dm under
         intermediate_callback)."""
         out = np.frombuffer(res[0], dtype=np.float64)
-        out[0] = self.decide(np.frombuffer(arg[0], dtype=np.float64),
-                             np.frombuffer(arg[2], dtype=np.float64))
+        out[0] = self._decide(np.frombuffer(arg[0], dtype=np.float64), float(np.frombuffer(arg[1])[0]),
+                              np.frombuffer(arg[2], dtype=np.float64))
         return 0
 
     def eval(self, arg):
-        return [self.decide(np.asarray(arg[0]).reshape(-1), np.asarray(arg[2]).reshape(-1))]
+        return [self._decide(np.asarray(arg[0]).reshape(-1), float(arg[1]), np.asarray(arg[2]).reshape(-1))]
+
+    def _decide(self, x: np.ndarray, f: float, g: np.ndarray) -> int:
+        raise NotImplementedError
+
+
+class IterationMonitor(_IpoptCallback):
+    """ipopt iteration callback: stops a run as soon as the *real* constraints hold (a
+    feasibility verdict needs no optimal regulariser), or when the violation has not improved
+    by 1 % for `patience` iterations (nonsmooth distances, e.g. penetrating boxes, make ipopt
+    wander until max_iter; measured 500 iterations ~ 0.5-2 s per run); progress is the total
+    violation (the L1 norm the elastic objective minimises). The real rows are
+    recovered from the elastic ones: h = g + s (inequalities), h = g + s_p - s_m (equalities)."""
+
+    def __init__(self, name: str, n_x: int, n_in: int, n_eq: int, n_g: int, n_p: int):
+        ca.Callback.__init__(self)
+        self.n_x, self.n_in, self.n_eq, self.n_g, self.n_p = n_x, n_in, n_eq, n_g, n_p
+        self.n_z = n_x + n_in + 2 * n_eq
+        self._sizes(self.n_z, n_g, n_p)
+        self.reset(0.0, 0)
+        self.construct(name, {})
+
+    def reset(self, stop_below: float, patience: int, deadline: float = math.inf, limit: int = 0) -> None:
+        """`limit` > 0: stop the run after that many iterations (`SolverOptions.iteration_budget`:
+        what is left of it, which ipopt's `max_iter`, fixed at assembly, cannot say). `deadline` (time.perf_counter() clock): stop the run at the first iteration after
+        it. Why here and not only ipopt's `max_wall_time`: that option is fixed when the NLP
+        is assembled, and an assembled NLP is cached and solved again later (restarts, the
+        polish, Alg. 1 revisiting a subgraph), when less time is left than at assembly. Only
+        NLPs with a monitor (early_stop: by default those with geometry primitives, whose
+        iterations are the slow ones) have this check; the others keep `max_wall_time`."""
+        self.stop_below, self.patience, self.deadline = stop_below, patience, deadline
+        self.best, self.best_z, self.since, self.stalled = np.inf, None, 0, False
+        self.timed_out = False
+        self.limit, self.count = limit, 0
+
+    def _decide(self, x: np.ndarray, f: float, g: np.ndarray) -> int:
+        return self.decide(x, g)
 
     def decide(self, z: np.ndarray, g: np.ndarray) -> int:
         """1 to stop the run at iterate z with elastic rows g, else 0 (`z` may be a view of
@@ -139,7 +154,7 @@ def raise_on_nan(graph: Any, per: Mapping[Any, float]) -> None:
         f"negative number, a division by zero or an overflow")
 
 
-class ObjectiveMonitor(ca.Callback):
+class ObjectiveMonitor(_IpoptCallback):
     """ipopt iteration callback of the optimisation NLP (`gnppdsl.nlp.optimisation`): keeps the
     feasible iterate (every row within `feasible_below`) of lowest objective, and stops the run
     when that objective has not dropped by `progress` (relative) for `patience` iterations, or
@@ -153,6 +168,7 @@ class ObjectiveMonitor(ca.Callback):
         ca.Callback.__init__(self)
         self.n_x, self.n_g = n_x, lbg.size
         self.lbg, self.ubg = np.asarray(lbg, float), np.asarray(ubg, float)
+        self._sizes(n_x, self.n_g)
         self.reset(0.0, 0)
         self.construct(name, {})
 
@@ -164,39 +180,8 @@ class ObjectiveMonitor(ca.Callback):
         self.ref = np.inf                  # the best objective when the stall count last started
         self.count, self.moved = 0, False
 
-    def get_n_in(self):
-        return ca.nlpsol_n_out()
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return ca.nlpsol_out(i)
-
-    def get_name_out(self, i):
-        return "ret"
-
-    def get_sparsity_in(self, i):
-        n = ca.nlpsol_out(i)
-        if n == "f":
-            return ca.Sparsity.scalar()
-        if n in ("x", "lam_x"):
-            return ca.Sparsity.dense(self.n_x)
-        if n in ("g", "lam_g"):
-            return ca.Sparsity.dense(self.n_g)
-        return ca.Sparsity(0, 0)
-
-    def has_eval_buffer(self):
-        return True
-
-    def eval_buffer(self, arg, res):
-        out = np.frombuffer(res[0], dtype=np.float64)
-        out[0] = self.decide(np.frombuffer(arg[0], dtype=np.float64), float(np.frombuffer(arg[1])[0]),
-                             np.frombuffer(arg[2], dtype=np.float64))
-        return 0
-
-    def eval(self, arg):
-        return [self.decide(np.asarray(arg[0]).reshape(-1), float(arg[1]), np.asarray(arg[2]).reshape(-1))]
+    def _decide(self, x: np.ndarray, f: float, g: np.ndarray) -> int:
+        return self.decide(x, f, g)
 
     def decide(self, x: np.ndarray, f: float, g: np.ndarray) -> int:
         """1 to stop the run at iterate x (objective f, rows g), else 0 (x may be a view of
