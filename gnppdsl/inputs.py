@@ -137,3 +137,18 @@ def is_regular_file(path: str | Path) -> bool:
         return stat.S_ISREG(os.stat(os.fspath(path)).st_mode)
     except (OSError, ValueError):
         return False
+
+
+def file_digest(path: str | Path | None) -> str:
+    """SHA-256 of a file's bytes, for cache keys that must change when a file is edited between
+    two processes (a robot's URDF and SRDF); "-" for no path, "unreadable PATH" when it
+    cannot be read (the key then still differs from a readable file's)."""
+    import hashlib
+
+    if not path:
+        return "-"
+    try:
+        with open(path, "rb") as fh:
+            return hashlib.sha256(fh.read()).hexdigest()
+    except OSError:
+        return f"unreadable {path}"

@@ -143,6 +143,24 @@ def output_dir(path: str | Path, what: str) -> Path:
     return p
 
 
+def cache_directory(env_var: str, name: str) -> Path | None:
+    """Where a cache of gnppdsl's lives: the directory `env_var` names (`0`, `off`, `no`,
+    `false` or empty: no cache, None), else `$XDG_CACHE_HOME/gnppdsl/<name>`, else
+    `~/.cache/gnppdsl/<name>`, else (no home directory) one under the temporary directory,
+    which `private_dir` accepts only when this user made it."""
+    env = os.environ.get(env_var)
+    if env is not None:
+        return None if env.strip().lower() in ("", "0", "off", "no", "false") else Path(env)
+    base = os.environ.get("XDG_CACHE_HOME")
+    if base:
+        return Path(base) / "gnppdsl" / name
+    try:
+        return Path.home() / ".cache" / "gnppdsl" / name
+    except RuntimeError:           # no home directory (HOME unset, no passwd entry)
+        import tempfile
+        return Path(tempfile.gettempdir()) / f"gnppdsl-{name}"
+
+
 def private_dir(path: str | Path) -> Path | None:
     """A cache directory of this user with mode 0700 (created, or tightened if it is ours);
     None when it cannot be made private (owned by another user, a symbolic link, not a

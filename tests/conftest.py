@@ -79,6 +79,10 @@ os.environ.setdefault("GNPP_NATIVE_BUILD", "0")
 if "GNPP_FUNCTION_CACHE" not in os.environ:
     import tempfile
     os.environ["GNPP_FUNCTION_CACHE"] = tempfile.mkdtemp(prefix="gnpp-functions-")
+# the same for the pre-built reachability graphs (gnppdsl.reach.persist)
+if "GNPP_REACH_CACHE" not in os.environ:
+    import tempfile
+    os.environ["GNPP_REACH_CACHE"] = tempfile.mkdtemp(prefix="gnpp-reach-")
 
 
 # ---- solves shared by several slow tests (tests/shared_solves.py), once per session ----------

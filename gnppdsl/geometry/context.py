@@ -153,14 +153,7 @@ class GeometryContext:
         files, and a file edited between two processes must give another key."""
         import hashlib
 
-        def digest(path: Any) -> str:
-            if not path:
-                return "-"
-            try:
-                with open(path, "rb") as fh:
-                    return hashlib.sha256(fh.read()).hexdigest()
-            except OSError:
-                return f"unreadable {path}"
+        from gnppdsl.inputs import file_digest as digest
 
         parts = [repr(self.structure_key(name)), repr(self.far_field)]
         spec = self.scene.robots.get(name)

@@ -78,16 +78,8 @@ def code_version() -> str:
 
 def default_directory() -> Path | None:
     """The store's directory (module docstring), or None when switched off."""
-    env = os.environ.get("GNPP_FUNCTION_CACHE")
-    if env is not None:
-        return None if env.strip().lower() in ("", "0", "off", "no", "false") else Path(env)
-    base = os.environ.get("XDG_CACHE_HOME")
-    if base:
-        return Path(base) / "gnppdsl" / "functions"
-    try:
-        return Path.home() / ".cache" / "gnppdsl" / "functions"
-    except RuntimeError:           # no home directory (HOME unset, no passwd entry)
-        return Path(tempfile.gettempdir()) / "gnppdsl-functions"
+    from gnppdsl.outputs import cache_directory
+    return cache_directory("GNPP_FUNCTION_CACHE", "functions")
 
 
 class FunctionStore:

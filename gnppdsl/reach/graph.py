@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Callable
 
 import networkx as nx
@@ -60,6 +60,7 @@ class GraphStats:
     queries: int = 0
     dijkstra_runs: int = 0
     query_time: float = 0.0
+    restored: bool = False      # the pre-built graph came from the store (`reach.persist`)
 
 
 class ReachabilityGraph:
@@ -109,23 +110,65 @@ class ReachabilityGraph:
                                    frozenset(frozenset(p) for p in scene.ignore_collisions), fixed_base)
         g = cls(robot, settings, checker, robot.home_coords(spec.home))
         if build:
-            g.build()
+            from gnppdsl.reach import persist
+            g.build(persist.graph_key(settings, spec, robot, g.home, obstacles, scene,
+                                      frozenset(frozenset(p) for p in scene.ignore_collisions), fixed_base))
         return g
 
-    def build(self) -> "ReachabilityGraph":
-        """Sample N_node validated nodes (at most `settings.draws` draws), then k-NN edges (lazy)."""
+    def build(self, key: str | None = None) -> "ReachabilityGraph":
+        """Sample N_node validated nodes (at most `settings.draws` draws), then k-NN edges (lazy).
+        `key` (`reach.persist.graph_key`): the nodes are restored from the store when it holds
+        this key, and stored after a build when it does not."""
+        from gnppdsl.reach import persist
+
         s = self.settings
         t0 = time.perf_counter()
-        while self.num_samples < s.samples and self.stats.draws < s.draws:
-            self.stats.draws += 1
-            x = self.rng.uniform(self._lo, self._hi)
-            v = self._validate(x)
-            if v is not None:
-                self._add_node(v, SAMPLE)
+        stored = persist.load(key) if key is not None and not self._ids else None
+        if stored is not None and self._restore(stored):
+            self.stats.restored = True
+        else:
+            while self.num_samples < s.samples and self.stats.draws < s.draws:
+                self.stats.draws += 1
+                x = self.rng.uniform(self._lo, self._hi)
+                v = self._validate(x)
+                if v is not None:
+                    self._add_node(v, SAMPLE)
+            if key is not None:
+                persist.save(key, self._built())
         for u in list(self._ids):
             self._connect(u, check=False)
         self.stats.build_time += time.perf_counter() - t0
         return self
+
+    def _built(self) -> dict:
+        """What the sampling drew (`reach.persist`): the nodes in order, the generator's state
+        after the draws, the statistics of the draws."""
+        return {"nodes": [[self.G.nodes[u]["x"].tolist(), self.G.nodes[u]["q"].tolist(), self.G.nodes[u]["c"]]
+                          for u in self._ids],
+                "rng": self.rng.bit_generator.state, "draws": self.stats.draws,
+                "validation": {f.name: getattr(self.stats.validation, f.name)
+                               for f in fields(self.stats.validation)}}
+
+    def _restore(self, data: dict) -> bool:
+        """The sampling's outcome from `_built`'s record, on a graph without nodes; False (and
+        the graph untouched) when the record does not fit this robot."""
+        try:
+            nodes = [(np.asarray(x, dtype=float), np.asarray(q, dtype=float), float(c)) for x, q, c in data["nodes"]]
+            if any(x.shape != (3,) or q.shape != (self.robot.nc,) for x, q, _ in nodes):
+                return False
+            draws = int(data["draws"])
+            counts = {f.name: int(data["validation"][f.name]) for f in fields(self.stats.validation)}
+            rng = np.random.default_rng()
+            rng.bit_generator.state = data["rng"]          # validated on a spare generator first
+        except (KeyError, TypeError, ValueError):
+            return False
+        self.rng = rng
+        for x, q, c in nodes:
+            self._add_node(NodeValidation(x, q, c, 0), SAMPLE)
+        self.stats.draws = draws
+        for name, n in counts.items():
+            setattr(self.stats.validation, name, n)
+        return True
 
     @property
     def num_samples(self) -> int:

@@ -98,6 +98,7 @@ class Stats:
     factory_time: float = 0.0         # seconds building graph-NLPs
     reach_time: float = 0.0           # seconds building / querying reachability graphs (rlgp)
     reach_samples: int = 0            # rlgp: IK-validated end-effector samples of the graphs (Eq. 2)
+    reach_restored: int = 0           # ... graphs whose samples came from the store (`reach.persist`)
     reach_queries: int = 0            # ... path queries (travel costs, warm starts)
     reach_library_hits: int = 0       # ... answered by the solution library
     reach_edge_checks: int = 0        # ... lazy edge collision checks
@@ -267,7 +268,9 @@ class Result:
             f"N0 {_opt(s.N0)}{'' if s.N0_shortest is not False else ' (not proven shortest)'}, N {_opt(s.N)}, total {s.total_time:.2f} s ({s.cpu_time:.2f} s CPU)"
         )
         if s.reach_samples:
-            lines.append(f"reachability: {s.reach_samples} samples, {s.reach_queries} queries "
+            lines.append(f"reachability: {s.reach_samples} samples"
+                         f"{_restored(s.reach_restored)}, "
+                         f"{s.reach_queries} queries "
                          f"({s.reach_library_hits} from the library), {s.reach_edge_checks} edge checks "
                          f"({s.reach_edges_removed} edges removed), {s.reach_enhanced_nodes} enhancement "
                          f"nodes; {s.reach_warmstarts} trajectories warm-started with graph paths "
@@ -335,6 +338,10 @@ def steps_of(task: Any, plan: Any, graph: Any, values: dict) -> list[Step]:
                 st.values[v.key] = x.tolist()
         steps.append(st)
     return steps
+
+
+def _restored(n: int) -> str:
+    return f" ({n} graph{'s' * (n > 1)} restored from the store)" if n else ""
 
 
 def _opt(x: Any) -> str:

@@ -132,10 +132,11 @@ class ReachabilityCosts:
         hits, lazy edge checks and the edges they removed, enhancement samples."""
         s = self.stats
         s.reach_samples = s.reach_queries = s.reach_library_hits = 0
-        s.reach_edge_checks = s.reach_edges_removed = s.reach_enhanced_nodes = 0
+        s.reach_edge_checks = s.reach_edges_removed = s.reach_enhanced_nodes = s.reach_restored = 0
         for graph, _ in self.reach.values():
             g = graph.stats
             s.reach_samples += graph.num_samples
+            s.reach_restored += g.restored
             s.reach_queries += g.queries
             s.reach_library_hits += graph.library.hits
             s.reach_edge_checks += g.edge_checks

@@ -106,8 +106,10 @@ def test_block_settings_reach_the_graph(sorting, sorting_graph):
     problem, _ = sorting
     block = select_block(problem)
     s = sorting_graph.settings
-    assert (s.robot, s.frame, s.neighbours, s.weights, s.interpolation, s.ik_restarts, s.ik_tolerance, s.seed) == \
-        (block.robot, block.frame, block.neighbours, block.weights, block.interpolation, block.ik_restarts,
+    # the mobile domain's block names no frame: the scene robot's `ee` (the Panda's tcp)
+    assert block.frame is None and s.frame == problem.scene.robots[block.robot].ee == "panda_hand_tcp"
+    assert (s.robot, s.neighbours, s.weights, s.interpolation, s.ik_restarts, s.ik_tolerance, s.seed) == \
+        (block.robot, block.neighbours, block.weights, block.interpolation, block.ik_restarts,
          block.ik_tolerance, block.seed)
     assert s.workspace == block.workspace and s.samples == 30 and sorting_graph.num_samples == 30
     assert settings_from_problem(problem).samples == block.samples
