@@ -76,13 +76,11 @@ os.environ.setdefault("GNPP_NATIVE_BUILD", "0")
 # The template Functions persisted across processes (gnppdsl.nlp.function_store) go to one
 # temporary directory per test session, not to the user's cache; tests/nlp/test_nlp_function_store.py
 # builds its stores in their own directories.
-if "GNPP_FUNCTION_CACHE" not in os.environ:
-    import tempfile
-    os.environ["GNPP_FUNCTION_CACHE"] = tempfile.mkdtemp(prefix="gnpp-functions-")
-# the same for the pre-built reachability graphs (gnppdsl.reach.persist)
-if "GNPP_REACH_CACHE" not in os.environ:
-    import tempfile
-    os.environ["GNPP_REACH_CACHE"] = tempfile.mkdtemp(prefix="gnpp-reach-")
+# The same for the pre-built reachability graphs (gnppdsl.reach.persist).
+for _var, _prefix in (("GNPP_FUNCTION_CACHE", "gnpp-functions-"), ("GNPP_REACH_CACHE", "gnpp-reach-")):
+    if _var not in os.environ:
+        import tempfile
+        os.environ[_var] = tempfile.mkdtemp(prefix=_prefix)
 
 
 # ---- solves shared by several slow tests (tests/shared_solves.py), once per session ----------

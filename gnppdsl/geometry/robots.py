@@ -22,7 +22,7 @@ import numpy as np
 
 from gnppdsl.errors import UserError
 from gnppdsl.geometry.shapes import convex_from_points, shape_vertices
-from gnppdsl.ir.robot_files import resolve_model_files, robot_data_share  # noqa: F401 (view.samples imports them here)
+from gnppdsl.ir.robot_files import resolve_model_files, robot_data_share
 from gnppdsl.ir.scene_model import SceneRobot
 
 _BIG = 1e10   # pinocchio marks "no limit" with +-DBL_MAX

@@ -79,7 +79,11 @@ class Graph:
     `has_edge`, `remove_nodes_from`, `nodes`, `edges`, `adj`, `neighbors`, `degree`,
     `number_of_nodes`, `copy`, iteration and `in`), with networkx's semantics: attribute dicts
     are copied on insertion (their values shared), an edge's dict is shared by both ends.
-    `to_networkx()` gives the networkx graph for what needs its algorithms."""
+    `to_networkx()` gives the networkx graph for what needs its algorithms. Why not
+    `networkx.Graph` itself: importing networkx cost ~0.1 s CPU of every cold `gnpp solve`
+    (issue 20), and a graph-NLP uses none of its algorithms; only conflict matching
+    (`gnppdsl.conflicts`) does, and it imports networkx when it runs.
+    `tests/nlp/test_nlp_graph.py` holds this class to networkx's behaviour (hypothesis)."""
 
     __slots__ = ("_node", "_adj")
 

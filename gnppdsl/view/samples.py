@@ -156,7 +156,7 @@ class _RobotVisuals:
     def __init__(self, compiled: Any, robot: str):
         import pinocchio as pin
 
-        from gnppdsl.geometry.robots import resolve_model_files, robot_data_share
+        from gnppdsl.ir.robot_files import resolve_model_files, robot_data_share
 
         self.pin = pin
         rm = compiled.geometry.robot(robot)
