@@ -148,7 +148,6 @@ def file_digest(path: str | Path | None) -> str:
     if not path:
         return "-"
     try:
-        with open(path, "rb") as fh:
-            return hashlib.sha256(fh.read()).hexdigest()
-    except OSError:
+        return hashlib.sha256(read_bytes(path)).hexdigest()
+    except InputError:
         return f"unreadable {path}"

@@ -125,9 +125,11 @@ def _short(text: str, n: int = 80) -> str:
 def _collision_links_of(urdf: str) -> frozenset[str] | None:
     import xml.etree.ElementTree as ET
 
-    try:
-        root = ET.parse(urdf).getroot()
-    except (OSError, ET.ParseError):
+    from gnppdsl.inputs import ROBOT_SUFFIXES, InputError, read_text
+
+    try:                   # through `inputs`: a FIFO or an oversized file is refused, not read
+        root = ET.fromstring(read_text(urdf, ROBOT_SUFFIXES, "robot model"))
+    except (InputError, ET.ParseError):
         return None        # load_robot reports an unreadable URDF
     return frozenset(ln.get("name") for ln in root.iter("link") if ln.find("collision") is not None)
 

@@ -157,3 +157,30 @@ def test_a_continuous_joint_is_locked_at_its_angle():
         a, b = df.oMf[full.getFrameId(ln)], dr.oMf[r.model.getFrameId(ln)]
         assert np.allclose(a.homogeneous, b.homogeneous, atol=1e-9), ln
     assert abs(spec.locked["l_wrist_roll_joint"] + 0.09) < 1e-12
+
+
+def test_links_of_a_robot_whose_urdf_is_a_fifo_are_not_read(tmp_path):
+    """`links:` are checked against the robot's URDF text (`urdf_collision_links`), read
+    through `gnppdsl.inputs` like every file a user names: a URDF that is a FIFO is refused,
+    never opened for reading (that blocks until a writer appears; ElementTree's own parse did).
+    In a subprocess with a timeout, so a regression fails instead of hanging the suite; and
+    `gnpp check` of a scene naming it ends located, exit 2."""
+    import os
+    import subprocess
+    import sys
+
+    d = tmp_path / "mobile"
+    shutil.copytree(MOBILE, d)
+    os.mkfifo(d / "pipe.urdf")
+    env = {**os.environ, "PYTHONPATH": str(MOBILE.parents[1])}
+    code = f"from gnppdsl.ir.scene import urdf_collision_links; print(urdf_collision_links(None, {str(d / 'pipe.urdf')!r}))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env)
+    assert out.returncode == 0 and out.stdout.strip() == "None", out.stdout + out.stderr
+    setting = d / "sorting_setting.yaml"
+    text = setting.read_text()
+    assert "    model: panda\n" in text
+    setting.write_text(text.replace("    model: panda\n", "    urdf: pipe.urdf\n", 1))
+    out = subprocess.run([sys.executable, "-m", "gnppdsl.cli.main", "check", str(d / "sort2.pntc")],
+                         capture_output=True, text=True, timeout=120, env=env, cwd=MOBILE.parents[1])
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert "Traceback" not in out.stderr and "FIFO" in out.stdout + out.stderr, out.stdout + out.stderr
