@@ -122,7 +122,8 @@ def _short(text: str, n: int = 80) -> str:
 
 
 @functools.lru_cache(maxsize=32)
-def _collision_links_of(urdf: str) -> frozenset[str] | None:
+def _urdf_names(urdf: str) -> tuple[frozenset[str], frozenset[str]] | None:
+    """(links with collision geometry, joints that move) of a URDF file, from its XML."""
     import xml.etree.ElementTree as ET
 
     from gnppdsl.inputs import ROBOT_SUFFIXES, InputError, read_text
@@ -131,12 +132,11 @@ def _collision_links_of(urdf: str) -> frozenset[str] | None:
         root = ET.fromstring(read_text(urdf, ROBOT_SUFFIXES, "robot model"))
     except (InputError, ET.ParseError):
         return None        # load_robot reports an unreadable URDF
-    return frozenset(ln.get("name") for ln in root.iter("link") if ln.find("collision") is not None)
+    return (frozenset(ln.get("name") for ln in root.iter("link") if ln.find("collision") is not None),
+            frozenset(j.get("name") for j in root.iter("joint") if j.get("type") != "fixed"))
 
 
-def urdf_collision_links(model: str | None, urdf: str | None) -> frozenset[str] | None:
-    """The links of a robot's URDF that have collision geometry, read from the XML (None when
-    the file cannot be found or read: loading the robot reports that)."""
+def _urdf_of(model: str | None, urdf: str | None) -> tuple[frozenset[str], frozenset[str]] | None:
     if urdf is None and model is not None:
         from gnppdsl.errors import UserError
         from gnppdsl.ir.robot_files import resolve_model_files
@@ -145,7 +145,20 @@ def urdf_collision_links(model: str | None, urdf: str | None) -> frozenset[str] 
             urdf = resolve_model_files(model)[0]
         except UserError:
             return None
-    return _collision_links_of(urdf) if urdf else None
+    return _urdf_names(urdf) if urdf else None
+
+
+def urdf_collision_links(model: str | None, urdf: str | None) -> frozenset[str] | None:
+    """The links of a robot's URDF that have collision geometry, read from the XML (None when
+    the file cannot be found or read: loading the robot reports that)."""
+    names = _urdf_of(model, urdf)
+    return None if names is None else names[0]
+
+
+def urdf_joints(model: str | None, urdf: str | None) -> frozenset[str] | None:
+    """The joints of a robot's URDF that move (not `fixed`): what `locked:` may name."""
+    names = _urdf_of(model, urdf)
+    return None if names is None else names[1]
 
 
 # ----------------------------------------------------------------------------------------
@@ -444,7 +457,12 @@ class _Loader:
         ee = self.string(m["ee"][1], "ee") if "ee" in m else None
         locked = {}
         if "locked" in m:
+            joints = urdf_joints(model, urdf)      # from the URDF's text, as `links:` are checked
             for k, (kn, vn) in self.mapping(m["locked"][1], "locked").items():
+                if joints is not None and k not in joints:
+                    self.error(kn, f"robot '{name}' has no joint '{k}' that moves (locked)", "unknown-joint",
+                               did_you_mean(str(k), sorted(joints)) or f"{len(joints)} joints move")
+                    continue
                 locked[k] = self.number(vn, f"locked joint '{k}'")
         links = self.links(name, m["links"][1], model, urdf) if "links" in m else {}
         home = self.numbers(m["home"][1], "home") if "home" in m else ()

@@ -133,6 +133,27 @@ def test_unknown_link_in_the_scene_is_located(tmp_path):
     assert "collision geometry" in y.message          # a frame, not a link with a shape
 
 
+def test_unknown_locked_joint_is_located(tmp_path):
+    """`locked:` naming a joint the URDF lacks, or one that does not move (fixed), is an error
+    of `gnpp check` at the key, with the closest joint names; until 27 Nov it passed the check
+    and `gnpp solve` ended with an unlocated "cannot lock unknown joint"."""
+    d = _copy(tmp_path)
+    s = (d / "sorting_pr2_setting.yaml").read_text()
+    assert s.count("l_wrist_roll_joint: -0.09}") == 1
+    s = s.replace("l_wrist_roll_joint: -0.09}", "l_wrist_roll_joint: -0.09, l_wrist_rol_joint: 1.0, base_footprint_joint: 0}")
+    (d / "sorting_pr2_setting.yaml").write_text(s)
+    line = next(i for i, t in enumerate(s.splitlines(), 1) if "l_wrist_rol_joint" in t)
+    text = s.splitlines()[line - 1]
+    rep = check_files([str(d / "sort_random_pr2.pntc")])
+    assert not rep.ok
+    x = _at(rep.reporter.diagnostics, "sorting_pr2_setting.yaml", line, text.index("l_wrist_rol_joint") + 1,
+            "unknown-joint")
+    assert "'l_wrist_roll_joint'" in (x.hint or "")
+    _at(rep.reporter.diagnostics, "sorting_pr2_setting.yaml", line, text.index("base_footprint_joint") + 1,
+        "unknown-joint")
+    assert len(rep.reporter.errors) == 2
+
+
 def test_a_continuous_joint_is_locked_at_its_angle():
     """The PR2's left wrist roll (continuous: cos, sin in pinocchio) locked at -0.09 rad: the
     reduced model places its link as the full model does at that angle."""
