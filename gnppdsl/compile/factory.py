@@ -595,6 +595,15 @@ class GraphNLPFactory:
         if value is None:
             raise error_at(at.span, f"{ctx.where}: scene entry '{objs[0]}' has no "
                                     f"attribute '{name}'")
+        space = self.domain.scene_attrs[name].space if name in self.domain.scene_attrs else None
+        if space is not None and space.kind == "R":
+            # what the domain declares (`scene base_clearance(r: object) : R`): a list given
+            # for a scalar was used as a vector, silently changing the rows
+            n = 1 if isinstance(value, (int, float)) else len(value)
+            if n != space.dim or (space.dim == 1 and not isinstance(value, (int, float))):
+                raise error_at(at.span, f"{ctx.where}: scene attribute {name} of '{objs[0]}' is "
+                                        f"{list(value) if not isinstance(value, (int, float)) else value}, "
+                                        f"the domain declares it {space}")
         if isinstance(value, (int, float)):
             return Num(float(value), span=at.span)
         return Vec(tuple(Num(float(x)) for x in value), span=at.span)

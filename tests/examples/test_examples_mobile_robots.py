@@ -154,6 +154,27 @@ def test_unknown_locked_joint_is_located(tmp_path):
     assert len(rep.reporter.errors) == 2
 
 
+def test_a_scene_attribute_of_the_wrong_shape_is_a_located_error(tmp_path):
+    """The domain declares `scene base_clearance(r: object) : R`; a list in the scene was used
+    as a vector (rows of another length, a solve that sometimes ended solved): now the factor
+    that reads it is refused at the call, naming the value and the declared space."""
+    from gnppdsl import ir
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+    from gnppdsl.errors import UserError
+    from gnppdsl.solve.compiled import compile_problem
+
+    d = _copy(tmp_path)
+    s = (d / "sorting_setting.yaml").read_text()
+    assert s.count("base_clearance: 0.15") == 1
+    (d / "sorting_setting.yaml").write_text(s.replace("base_clearance: 0.15", "base_clearance: [0.1, 0.2]"))
+    c = compile_problem(ir.load_problem(d / "sort2.pntc"))
+    states = plan_states(c.task, parse_plan(c.task, "pick(red1, mm, center); drop(red1, mm, red_tray)"))
+    with pytest.raises(UserError) as e:
+        c.factory.factors(states)
+    text = str(e.value)
+    assert "domain.pntc:" in text and "base_clearance of 'mm' is [0.1, 0.2]" in text and "declares it R" in text
+
+
 def test_a_continuous_joint_is_locked_at_its_angle():
     """The PR2's left wrist roll (continuous: cos, sin in pinocchio) locked at -0.09 rad: the
     reduced model places its link as the full model does at that angle."""
