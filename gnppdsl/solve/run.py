@@ -195,8 +195,10 @@ class Run(ReachabilityCosts):
             raise AssertionError(f"conflict {seq} does not hold in the plan it came from at step {first}")
         t0, c0 = time.perf_counter(), _cpu()
         instances = [seq]
+        self.images = {seq: tuple(sub_factors)}
         if self.lifter is not None:
             instances = self.lifter.instances(plan.states, sub_factors)
+            self.images.update(self.lifter.images)
             self.stats.lift_time += time.perf_counter() - t0
         batched: list = []
         if self.batcher is not None and self.graph_factors >= self.options.batch_min_factors:
@@ -204,8 +206,9 @@ class Run(ReachabilityCosts):
             t1, c1 = time.perf_counter(), _cpu()
             batched = self.batch(plan, sub_factors, instances)
             t0, c0 = t0 + time.perf_counter() - t1, c0 + _cpu() - c1
+        stretched = self.stretched(instances + batched)
         known = seq in set(self.planner.conflicts)
-        new = self.planner.add_lifted(instances + batched)
+        new = self.planner.add_lifted(instances + batched + stretched)
         if known or not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
@@ -215,13 +218,36 @@ class Run(ReachabilityCosts):
         c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
                      relaxation, self.stats.plans, first, named=names_of(self.task, seq),
                      instances=others, subgraph=tuple(sub_factors),
-                     batched=tuple(conflict_str(self.task, s) for s in batched))
+                     batched=tuple(conflict_str(self.task, s) for s in batched),
+                     stretched=tuple(conflict_str(self.task, s) for s in stretched))
         self.conflicts.append(c)
         self.stats.conflicts += 1
         self.stats.conflict_instances += new
+        self.stats.stretched_instances += len(stretched)
         lifted = f" (+{len(others)} symmetric instances)" if others else ""
         lifted += f" (+{len(batched)} batch-learned)" if batched else ""
+        lifted += f" (+{len(stretched)} stretched)" if stretched else ""
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
+
+    def stretched(self, seqs: Sequence) -> list:
+        """The stretched instances (`gnppdsl.conflicts.stretch`) of the conflicts `seqs` whose
+        factors are known (`self.images`), up to the planner's horizon; none already in `seqs`
+        or forbidden by the planner."""
+        if not self.options.stretch_conflicts:
+            return []
+        from gnppdsl.conflicts.stretch import stretched
+
+        have = set(seqs) | set(self.planner.conflicts)
+        out = []
+        for s in seqs:
+            factors = self.images.get(s)
+            if factors is None:
+                continue
+            for inst in stretched(factors, self.options.max_horizon + 1)[1:]:
+                if inst not in have:
+                    have.add(inst)
+                    out.append(inst)
+        return out
 
     def batch(self, plan: Plan, sub_factors: Sequence[FactorInstance], instances: Sequence) -> list:
         """The conflict's renamed candidates that are infeasible (`gnppdsl.conflicts.batch`):
@@ -260,8 +286,11 @@ class Run(ReachabilityCosts):
                 if not feasible:
                     # with its symmetric instances (`Lifter`: the same NLP, no solve)
                     found = [cand.conflict]
+                    self.images.setdefault(cand.conflict, cand.factors)
                     if self.lifter is not None:
                         found = self.lifter.instances(cand.states, cand.factors)
+                        for k, v in self.lifter.images.items():
+                            self.images.setdefault(k, v)
                     for seq in found:
                         if not subsumed(seq, known):
                             out.append(seq)

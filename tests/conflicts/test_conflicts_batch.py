@@ -129,7 +129,7 @@ def test_batch_learned_conflicts_never_forbid_a_feasible_plan(tmp_path):
     for learned_on, checked_on, least in ((full, short, 5), (p6, p6, 30)):
         result = solve(learned_on)
         assert result.status == "solved" and verify(learned_on, result).ok
-        texts = [t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched)]
+        texts = [t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched, *c.stretched)]
         if learned_on is full:
             assert any(c.batched for c in result.conflicts)      # something to check
         seqs = parse_conflicts("\n".join(texts), checked_on.task)

@@ -78,7 +78,7 @@ def solve(compiled, **kw):
 def instances(compiled, result):
     """Every ground instance the solve forbade (batch-learned ones too), read back from the
     result's texts."""
-    text = "\n".join(t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched))
+    text = "\n".join(t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched, *c.stretched))
     return parse_conflicts(text, compiled.task)
 
 
