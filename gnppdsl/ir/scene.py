@@ -122,9 +122,9 @@ def _short(text: str, n: int = 80) -> str:
 
 
 @functools.lru_cache(maxsize=32)
-def _urdf_names(urdf: str) -> tuple[frozenset[str], frozenset[str], tuple[tuple[str, str], ...]] | None:
-    """(links with collision geometry, joints that move, (name, type) of each joint that moves)
-    of a URDF file, from its XML."""
+def _urdf_names(urdf: str) -> tuple | None:
+    """(links with collision geometry, joints that move, (name, type) of each joint that moves,
+    every link and joint name: the frames of pinocchio's model) of a URDF file, from its XML."""
     import xml.etree.ElementTree as ET
 
     from gnppdsl.inputs import ROBOT_SUFFIXES, InputError, read_text
@@ -137,7 +137,8 @@ def _urdf_names(urdf: str) -> tuple[frozenset[str], frozenset[str], tuple[tuple[
     # too (the PR2's caster wheels), which pinocchio's model does not have
     moving = tuple((j.get("name"), j.get("type")) for j in root.findall("joint") if j.get("type") != "fixed")
     return (frozenset(ln.get("name") for ln in root.findall("link") if ln.find("collision") is not None),
-            frozenset(n for n, _ in moving), moving)
+            frozenset(n for n, _ in moving), moving,
+            frozenset(x.get("name") for x in root.findall("link") + root.findall("joint")))
 
 
 def _urdf_of(model: str | None, urdf: str | None):
@@ -157,6 +158,13 @@ def urdf_collision_links(model: str | None, urdf: str | None) -> frozenset[str] 
     the file cannot be found or read: loading the robot reports that)."""
     names = _urdf_of(model, urdf)
     return None if names is None else names[0]
+
+
+def urdf_frames(model: str | None, urdf: str | None) -> frozenset[str] | None:
+    """Every frame `fk(r, q, NAME)` may name: the URDF's links and joints (pinocchio makes a
+    frame of each), read from the XML."""
+    names = _urdf_of(model, urdf)
+    return None if names is None else names[3]
 
 
 def urdf_joints(model: str | None, urdf: str | None) -> frozenset[str] | None:

@@ -23,22 +23,22 @@ def test_pr2_problems_check(name):
     assert rep.ok, rep.render()
 
 
-def _ground_links(problem: str) -> set[str]:
+def _ground_links(problem: str | Path, fn: str = "link", arg: int = 1) -> set[str]:
     """The link names of the ground factors of pick(red1) then drop(red1) (`link(r, NAME)`
-    as the factory resolved it)."""
+    as the factory resolved it; `fn="fk", arg=2`: the frames of `fk(r, q, NAME)`)."""
     from gnppdsl import ir
     from gnppdsl.compile.semantics import parse_plan, plan_states
     from gnppdsl.ir.expr import Call, Str
     from gnppdsl.solve.compiled import compile_problem
 
-    c = compile_problem(ir.load_problem(MOBILE / problem))
+    c = compile_problem(ir.load_problem(MOBILE / problem if isinstance(problem, str) else problem))
     states = plan_states(c.task, parse_plan(c.task, "pick(red1, mm, center); drop(red1, mm, red_tray)"))
     names: set[str] = set()
 
     def walk(x):
-        if isinstance(x, Call) and x.fn == "link":
-            assert isinstance(x.args[1], Str), x
-            names.add(x.args[1].value)
+        if isinstance(x, Call) and x.fn == fn and len(x.args) > arg:
+            assert isinstance(x.args[arg], Str), x
+            names.add(x.args[arg].value)
         if isinstance(x, (tuple, list)):
             for a in x:
                 walk(a)
@@ -302,3 +302,45 @@ def test_a_joint_named_only_in_a_transmission_cannot_be_locked(tmp_path):
     rep = check_files([str(d / "sort_random_pr2.pntc")])
     assert [e.kind for e in rep.reporter.errors] == ["unknown-joint"]
     assert "fl_caster_rotation_joint" in rep.reporter.errors[0].message
+
+
+def _with_wrist_height(d: Path, role: str) -> None:
+    """The mobile domain plus a template on `fk(r, q(r), ROLE)` (the wrist above the floor)."""
+    dom = (d / "domain.pntc").read_text()
+    old = "template base_clear(r: object, t: object) tags collision {\n"
+    assert dom.count(old) == 1
+    dom = dom.replace(old, old + f'  pos(fk(r, q(r), "{role}"))[2] >= 0.0\n')
+    (d / "domain.pntc").write_text(dom)
+
+
+@pytest.mark.parametrize("problem, links, ee", [
+    ("sort_random_pr2.pntc", {"base_link", "r_forearm_link", "r_wrist_flex_link", "r_gripper_palm_link"},
+     "r_gripper_tool_frame"),
+    ("sort_random.pntc", {"panda_link0", "panda_link5", "panda_link6", "panda_hand"}, "panda_hand_tcp"),
+])
+def test_fk_takes_a_role_as_link_does(tmp_path, problem, links, ee):
+    """`fk(r, q, "wrist")` grounds to the scene robot's link for the role, as `link(r, "wrist")`
+    does (before, the role "wrist" went to pinocchio as a frame name and the solve failed): the
+    ground fk frames are the robot's links (of link(), posed by fk) and its `ee` (the two-argument
+    fk), and no role."""
+    d = _copy(tmp_path)
+    _with_wrist_height(d, "wrist")
+    assert check_files([str(d / problem)]).ok
+    assert _ground_links(d / problem, "fk", 2) == links | {ee}
+
+
+def test_an_unknown_fk_frame_is_located(tmp_path):
+    """A misspelt frame or role in `fk(r, q, NAME)` is an error of `gnpp check` at the string;
+    a URDF joint name is a frame (pinocchio makes one per joint) and passes."""
+    d = _copy(tmp_path)
+    _with_wrist_height(d, "wirst")
+    text = (d / "domain.pntc").read_text().splitlines()
+    line = next(i for i, t in enumerate(text, 1) if '"wirst"' in t)
+    rep = check_files([str(d / "sort_random_pr2.pntc")])
+    x = _at(rep.reporter.diagnostics, "domain.pntc", line, text[line - 1].index('"wirst"') + 1, "unknown-link")
+    assert "frame 'wirst'" in x.message and "'wrist'" in (x.hint or "")
+    d2 = tmp_path / "joint"
+    d2.mkdir()
+    _copy(d2)
+    _with_wrist_height(d2, "r_wrist_flex_joint")
+    assert check_files([str(d2 / "sort_random_pr2.pntc")]).ok
