@@ -206,9 +206,9 @@ class Run(ReachabilityCosts):
             t1, c1 = time.perf_counter(), _cpu()
             batched = self.batch(plan, sub_factors, instances)
             t0, c0 = t0 + time.perf_counter() - t1, c0 + _cpu() - c1
-        stretched = self.stretched(instances + batched)
+        interleaved = self.interleaved(instances + batched)
         known = seq in set(self.planner.conflicts)
-        new = self.planner.add_lifted(instances + batched + stretched)
+        new = self.planner.add_lifted(instances + batched + interleaved)
         if known or not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
@@ -219,23 +219,23 @@ class Run(ReachabilityCosts):
                      relaxation, self.stats.plans, first, named=names_of(self.task, seq),
                      instances=others, subgraph=tuple(sub_factors),
                      batched=tuple(conflict_str(self.task, s) for s in batched),
-                     stretched=tuple(conflict_str(self.task, s) for s in stretched))
+                     interleaved=tuple(conflict_str(self.task, s) for s in interleaved))
         self.conflicts.append(c)
         self.stats.conflicts += 1
         self.stats.conflict_instances += new
-        self.stats.stretched_instances += len(stretched)
+        self.stats.interleaved_instances += len(interleaved)
         lifted = f" (+{len(others)} symmetric instances)" if others else ""
         lifted += f" (+{len(batched)} batch-learned)" if batched else ""
-        lifted += f" (+{len(stretched)} stretched)" if stretched else ""
+        lifted += f" (+{len(interleaved)} interleaved)" if interleaved else ""
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
 
-    def stretched(self, seqs: Sequence) -> list:
-        """The stretched instances (`gnppdsl.conflicts.stretch`) of the conflicts `seqs` whose
+    def interleaved(self, seqs: Sequence) -> list:
+        """The interleaved instances (`gnppdsl.conflicts.interleave`) of the conflicts `seqs` whose
         factors are known (`self.images`), up to the planner's horizon; none already in `seqs`
         or forbidden by the planner."""
-        if not self.options.stretch_conflicts:
+        if not self.options.interleave_conflicts:
             return []
-        from gnppdsl.conflicts.stretch import stretched
+        from gnppdsl.conflicts.interleave import stretched
 
         have = set(seqs) | set(self.planner.conflicts)
         out = []

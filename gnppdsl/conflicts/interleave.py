@@ -1,4 +1,4 @@
-"""Stretched conflicts: one infeasible subgraph, every interleaving of steps that leave it alone.
+"""Interleaved conflicts: one infeasible subgraph, every interleaving of steps that leave it alone.
 
 Why: a conflict <p_0 .. p_L> fixes the distance between its steps. On the Field problems the
 mobile base is tied across steps by the `parked` rule (`q(mm)[0:3] == q(mm)'[0:3]` while

@@ -1,4 +1,4 @@
-"""Stretched and contracted conflicts (`gnppdsl.conflicts.stretch`, issue 19 / 24): a conflict
+"""Interleaved (stretched and contracted) conflicts (`gnppdsl.conflicts.interleave`, issue 19 / 24): a conflict
 is not tied to one interleaving of the steps that leave its subgraph alone.
 
 Oracles independent of the stretching code:
@@ -17,7 +17,7 @@ import pytest
 
 from gnppdsl.compile.semantics import successor
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
-from gnppdsl.conflicts.stretch import bridges, chain_equality, contracted, stretched
+from gnppdsl.conflicts.interleave import bridges, chain_equality, contracted, stretched
 from gnppdsl.logic.validate import find_sequence
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
