@@ -18,6 +18,7 @@ from gnppdsl.solve.check_memory import CheckMemory
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.interpolation import keyframe_of, straight_line
 from gnppdsl.solve.options import overridden
+from gnppdsl.solve.plan_graph import bound_violation
 
 if TYPE_CHECKING:  # pragma: no cover  (casadi)
     from gnppdsl.nlp.feasibility import FeasibilityResult
@@ -214,6 +215,24 @@ class TrajectoryPhase(CheckMemory):
                 idle[v] = straight_line(xa, xb, v.waypoints, a.space)
         return idle
 
+    def fixed_factors_hold(self, s: GraphNLP, refs: Sequence, point: dict) -> bool:
+        """Do the factors `refs` of s (on fixed variables only) hold at `point` (numpy,
+        `Run.violation`)? A factor found to hold is remembered with the values of its
+        variables, and not evaluated again at the same values. Why: consecutive phases share a
+        keyframe, whose own factors (every pair of blocks, every arm and block: stack_16 ~200
+        per step) were checked by the phase before at the same values; 0.4 s each time."""
+        memo = self.__dict__.setdefault("_fixed_held", set())
+        keys = {}
+        for ref in refs:
+            f = s.factor(ref)
+            keys[ref] = (ref.index, id(s.factors),
+                         tuple(np.asarray(point[u], float).tobytes() for u in f.variables))
+        todo = [ref for ref in refs if keys[ref] not in memo]
+        if todo and self.run.violation([s.factor(ref) for ref in todo], point) > self.run.options.tolerance:
+            return False
+        memo.update(keys[ref] for ref in todo)
+        return True
+
     def solve_motion(self, s: GraphNLP, frozen: dict, idle: dict, warm: dict, fixed_values: dict
                      ) -> FeasibilityResult | None:
         """One phase's NLP with its keyframes (`frozen`) and the `idle` trajectories fixed; the
@@ -230,7 +249,7 @@ class TrajectoryPhase(CheckMemory):
         start = {**warm, **fixed_values, **idle, **{v: self.values[v] for v in frozen}}
         m = s
         const = [ref for ref in s.factor_refs if all(u in fixed for u in s.graph.neighbors(ref))]
-        if const and run.violation([s.factor(ref) for ref in const], start) <= run.options.tolerance:
+        if const and self.fixed_factors_hold(s, const, start):
             # the factors on fixed variables only (the keyframes' own factors, with the idle
             # trajectories' rows) hold: checked once here, not carried through every
             # iteration. Why also without idle trajectories: the active set's repair solves
@@ -241,24 +260,35 @@ class TrajectoryPhase(CheckMemory):
                            suffix="{moving}")
         elif idle:
             return None
+        margins = None
         if all(v in start for v in m.variables):
             point = {v: start[v] for v in m.variables}
-            worst = run.violation(m.factor_instances, point, m.variables)
+            # per factor (signed), also what `screened_motion` selects the near collisions by
+            margins = self._margins(m.factor_instances, point)
+            worst = np.inf if margins is None else \
+                max(max(margins, default=0.0), 0.0, bound_violation(m.variables, point))
             if worst <= run.options.tolerance:
                 run.stats.reused_solutions += 1
                 return FeasibilityResult(True, {**point, **idle}, {r: 0.0 for r in m.factor_refs}, worst,
                                          0.0, 0.0, 0, "its start satisfies it", 0)
-        # a solver of its own: assembled NLPs are cached by vertex set, which ignores bounds
-        solver = run.new_solver()
-        solver.options.restarts, solver.options.polish = 0, True
-        solver.options.max_iter = min(solver.options.max_iter, MOTION_MAX_ITER)
-        solver.options.iteration_budget = MOTION_MAX_ITER      # for all its runs together
-        solver.options.time_limit = max(0.05, run.remaining())
-        r = solver.solve(GraphNLPView.with_variables(m, {v: f for v, f in fixed.items() if v in m}),
-                         warm_start=start, seed=run.options.seed)
-        run.nlp_calls += 1
-        if time.perf_counter() >= run.deadline:
-            raise TimeUp()
+        def solve(sub: GraphNLP, at: dict) -> FeasibilityResult:
+            # a solver of its own: assembled NLPs are cached by vertex set, which ignores bounds
+            solver = run.new_solver()
+            solver.options.restarts, solver.options.polish = 0, True
+            solver.options.max_iter = min(solver.options.max_iter, MOTION_MAX_ITER)
+            solver.options.iteration_budget = MOTION_MAX_ITER      # for all its runs together
+            solver.options.time_limit = max(0.05, run.remaining())
+            r = solver.solve(GraphNLPView.with_variables(sub, {v: f for v, f in fixed.items() if v in sub}),
+                             warm_start=at, seed=run.options.seed)
+            run.nlp_calls += 1
+            if time.perf_counter() >= run.deadline:
+                raise TimeUp()
+            return r
+
+        # many collision factors (one per resting block): first with the near ones (`screening`)
+        r = self.screened_motion(m, start, solve, margins)
+        if r is None:
+            r = solve(m, start)
         if r.feasible:
             r.values.update({v: x for v, x in idle.items() if v not in r.values})
         return r

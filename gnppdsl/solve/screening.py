@@ -21,6 +21,7 @@ the screened graph is a relaxation of it, but its one failed start proves nothin
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from gnppdsl.nlp.graph import GraphNLP
@@ -59,6 +60,13 @@ keyframes led to more active-set pairs and 264 s CPU against 103). stack_32's ha
 without a verdict (21354 factors); screened, 1308 of them are near at the relaxation's point."""
 
 
+MOTION_SCREEN_MIN = 16
+"""Collision factors of one phase's motion NLP between fixed keyframes (`solve_motion`) from
+which it is screened too (each factor is a whole motion's rows against one body: `path_clear`
+is 6 distance rows at each of 18 waypoints). The Lab problems have at most a dozen per motion;
+stack_32 has 33-35 (every block and the table), of which a motion's start comes near 2-6."""
+
+
 class CollisionScreen(CheckMemory):
     """`screened`: the feasibility check's collision screening (see the module docstring).
 
@@ -91,24 +99,66 @@ class CollisionScreen(CheckMemory):
         every factor of g with numpy; None when screening does not apply or does not succeed
         (no verdict: the caller solves g whole). One start per NLP (no restarts), warm-started
         from `warm` (completed by the initial guess) and then from each round's solution."""
-        from gnppdsl.nlp.feasibility import FeasibilityResult
-
         run = self.run
         if not (self.screen and run.options.screen_collisions):
             return None
-        refs = g.factor_refs
-        collision = [r for r in refs if "collision" in g.factor(r).tags]
-        is_collision = set(collision)
+        collision = [r for r in g.factor_refs if "collision" in g.factor(r).tags]
         if len(collision) < SCREEN_MIN_FACTORS:
             return None
         guess = g.initial_guess or {}
         point = {v: warm[v] if v in warm else guess.get(v) for v in g.variables}
         if any(x is None for x in point.values()):
             return None
+
+        def solve(sub: GraphNLP, at: dict) -> FeasibilityResult:
+            r = self.screened_solve(sub, at)
+            if not r.feasible and not self.solver.options.distance_curvature:
+                run.stats.screened_solves += 1
+                second = self.screened_solve(sub, at, distance_curvature=True)
+                r = replace(second, iterations=r.iterations + second.iterations,
+                            starts=r.starts + second.starts)
+            return r
+
+        return self.screen_rounds(g, point, collision, solve)
+
+    def screened_motion(self, m: GraphNLP, start: dict, solve, margins: list | None = None
+                        ) -> FeasibilityResult | None:
+        """`screen_rounds` for one phase's motion NLP m between fixed keyframes
+        (`TrajectoryPhase.solve_motion`; `solve(sub, start)` runs the caller's solver with the
+        keyframes held) when it has MOTION_SCREEN_MIN collision factors or more; None when it
+        does not apply or does not succeed (the caller solves m whole). `margins`: the factors'
+        margins at the start when the caller has them (its check of the start).
+
+        Why: each motion carries a `path_clear` of its arm against every resting block, and
+        an ipopt iteration evaluates all of them (stack_32: 33-35 collision factors, ~3500
+        distance rows per motion, 65-70 iterations per moving arm), where the interpolated
+        start passes within SCREEN_DISTANCE of a handful of blocks. A motion is never a
+        verdict, and its answer is accepted only after numpy checks every factor of m."""
+        if not self.run.options.screen_collisions:
+            return None
+        collision = [r for r in m.factor_refs if "collision" in m.factor(r).tags]
+        if len(collision) < MOTION_SCREEN_MIN or any(v not in start for v in m.variables):
+            return None
+        return self.screen_rounds(m, {v: start[v] for v in m.variables}, collision, solve, margins)
+
+    def screen_rounds(self, g: GraphNLP, point: dict, collision: list, solve,
+                      margins: list | None = None) -> FeasibilityResult | None:
+        """The rounds of `screened` on g from `point` (a value for every variable of g), given
+        its collision factors: `solve(sub, start)` solves a subgraph of g with the collision
+        factors near so far (one NLP, or a second try); a result is returned only when numpy
+        finds every factor and bound of g holds at its point. None: screening leaves out too
+        little, a screened NLP failed, or the rounds ran out (no verdict)."""
+        from gnppdsl.nlp.feasibility import FeasibilityResult
+
+        run = self.run
+        refs = g.factor_refs
+        is_collision = set(collision)
         t0 = time.perf_counter()
         tol = run.options.tolerance
+        point = dict(point)
         instances = [g.factor(r) for r in refs]
-        margins = self._margins(instances, point)
+        if margins is None:       # else given by the caller, at this point, in the order of refs
+            margins = self._margins(instances, point)
         if margins is None:
             return None
         near = {r for r, m in zip(refs, margins) if r in is_collision and m > -SCREEN_DISTANCE}
@@ -119,15 +169,10 @@ class CollisionScreen(CheckMemory):
         for round_ in range(SCREEN_ROUNDS):
             sub = g.subgraph(variables=g.variables, factors=[*others, *sorted(near)],
                              suffix=f"{{screened {len(near)}/{len(collision)}}}")
-            r = self.screened_solve(sub, point)
+            r = solve(sub, point)
             iters += r.iterations
             starts += r.starts
             run.stats.screened_solves += 1
-            if not r.feasible and not self.solver.options.distance_curvature:
-                r = self.screened_solve(sub, point, distance_curvature=True)
-                iters += r.iterations
-                starts += r.starts
-                run.stats.screened_solves += 1
             run.stats.screened_dropped += len(collision) - len(near)
             if not r.feasible:
                 run.say(f"  {g.name}: screened NLP ({len(near)} of {len(collision)} collision factors) "
@@ -195,4 +240,4 @@ class CollisionScreen(CheckMemory):
         return r
 
 
-__all__ = ["CollisionScreen", "SCREEN_DISTANCE", "SCREEN_KEYFRAMES_MIN", "SCREEN_MIN_FACTORS"]
+__all__ = ["CollisionScreen", "MOTION_SCREEN_MIN", "SCREEN_DISTANCE", "SCREEN_KEYFRAMES_MIN", "SCREEN_MIN_FACTORS"]
