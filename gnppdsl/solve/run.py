@@ -70,6 +70,8 @@ class Run(ReachabilityCosts):
             self.kernel_base = (self.kernels.compiled, self.kernels.compile_time, self.kernels.failed,
                                 self.kernels.queued)
         self.solvers: list[FeasibilitySolver] = []      # every FeasibilitySolver of this run (ipopt runs, time)
+        self.screen_curved = False        # a screened NLP failed linearised and was solved with the
+                                          # distances' curvature: later ones start with it (`screening`)
         self.nlp_calls = 0                # NLPs solved through FeasibilityCheck.solve
         self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
         self.db: SubgraphDatabase | None = None

@@ -111,10 +111,16 @@ class CollisionScreen(CheckMemory):
             return None
 
         def solve(sub: GraphNLP, at: dict) -> FeasibilityResult:
-            r = self.screened_solve(sub, at)
-            if not r.feasible and not self.solver.options.distance_curvature:
+            if self.solver.options.distance_curvature:
+                return self.screened_solve(sub, at)
+            # linearised distance rows first, the exact Hessian second (`screened_solve`); once
+            # the exact one has rescued a screened NLP of this solve, the other way round
+            first = run.screen_curved
+            r = self.screened_solve(sub, at, distance_curvature=first)
+            if not r.feasible:
                 run.stats.screened_solves += 1
-                second = self.screened_solve(sub, at, distance_curvature=True)
+                second = self.screened_solve(sub, at, distance_curvature=not first)
+                run.screen_curved |= second.feasible and not first
                 r = replace(second, iterations=r.iterations + second.iterations,
                             starts=r.starts + second.starts)
             return r
@@ -222,7 +228,13 @@ class CollisionScreen(CheckMemory):
         37.7 s CPU, violation 0.0365 unchanged; its slice of steps 11-14 alone: 180 iterations,
         28.5 s), with the exact Hessian the slice is solved in 18 iterations (6.4 s). A failed
         screened NLP is no verdict either way; a second run costs one more NLP of the screened
-        size where the alternative is the whole graph."""
+        size where the alternative is the whole graph.
+
+        Once such a second try has succeeded in a solve (`Run.screen_curved`), its later
+        screened NLPs are run with the exact Hessian first and linearised second: stack_32's
+        screened keyframes spent 12 s CPU on a linearised run that failed before the exact one
+        solved them, on each graph of that size. Either order tries the same two runs from the
+        same point; neither failure is a verdict."""
         run = self.run
         solver = self.solver
         if distance_curvature:
