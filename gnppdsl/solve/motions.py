@@ -215,24 +215,6 @@ class TrajectoryPhase(CheckMemory):
                 idle[v] = straight_line(xa, xb, v.waypoints, a.space)
         return idle
 
-    def fixed_factors_hold(self, s: GraphNLP, refs: Sequence, point: dict) -> bool:
-        """Do the factors `refs` of s (on fixed variables only) hold at `point` (numpy,
-        `Run.violation`)? A factor found to hold is remembered with the values of its
-        variables, and not evaluated again at the same values. Why: consecutive phases share a
-        keyframe, whose own factors (every pair of blocks, every arm and block: stack_16 ~200
-        per step) were checked by the phase before at the same values; 0.4 s each time."""
-        memo = self.__dict__.setdefault("_fixed_held", set())
-        keys = {}
-        for ref in refs:
-            f = s.factor(ref)
-            keys[ref] = (ref.index, id(s.factors),
-                         tuple(np.asarray(point[u], float).tobytes() for u in f.variables))
-        todo = [ref for ref in refs if keys[ref] not in memo]
-        if todo and self.run.violation([s.factor(ref) for ref in todo], point) > self.run.options.tolerance:
-            return False
-        memo.update(keys[ref] for ref in todo)
-        return True
-
     def solve_motion(self, s: GraphNLP, frozen: dict, idle: dict, warm: dict, fixed_values: dict
                      ) -> FeasibilityResult | None:
         """One phase's NLP with its keyframes (`frozen`) and the `idle` trajectories fixed; the
@@ -249,7 +231,7 @@ class TrajectoryPhase(CheckMemory):
         start = {**warm, **fixed_values, **idle, **{v: self.values[v] for v in frozen}}
         m = s
         const = [ref for ref in s.factor_refs if all(u in fixed for u in s.graph.neighbors(ref))]
-        if const and self.fixed_factors_hold(s, const, start):
+        if const and run.violation([s.factor(ref) for ref in const], start) <= run.options.tolerance:
             # the factors on fixed variables only (the keyframes' own factors, with the idle
             # trajectories' rows) hold: checked once here, not carried through every
             # iteration. Why also without idle trajectories: the active set's repair solves

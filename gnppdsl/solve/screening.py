@@ -191,6 +191,7 @@ class CollisionScreen(CheckMemory):
             worst = max(max(margins, default=0.0), 0.0)
             worst = max(worst, bound_violation(g.variables, point))
             if worst <= tol:
+                run.remember_held(instances, point, worst)     # checked here: `Run.violation`
                 run.stats.reused_solutions += 1
                 return FeasibilityResult(True, dict(point), {ref: 0.0 for ref in refs}, worst, 0.0,
                                          time.perf_counter() - t0, iters,

@@ -222,3 +222,54 @@ def test_a_plans_own_keyframes_are_screened_only_when_huge(monkeypatch):
     solved()
     own = [g for g, _ in seen if g.name.startswith("G[modes]{screened")]
     assert own
+
+
+def test_numpy_checks_skip_factors_that_held_at_the_same_values(monkeypatch):
+    """`Run.violation` does not evaluate again a factor it found holding at the same values of
+    its variables (it answers from `Run.held`), evaluates it again at other values, and never
+    remembers a call that found a violation. The solve still ends with a checked solution."""
+    from gnppdsl.nlp import evaluate
+    from gnppdsl.solve.run import Run, _values_key
+
+    evaluated = []                 # (id(f), values key, call holds) of every factor evaluated
+    runs = []
+    real_max = evaluate.max_violation
+
+    inside = []                    # only the evaluations `Run.violation` makes
+
+    def spy_max(factors, values, geometry=None):
+        factors = list(factors)
+        out = real_max(factors, values, geometry)
+        if inside:
+            evaluated.extend((id(f), _values_key(f, values), out[0] <= 1e-6) for f in factors)
+        return out
+
+    real_violation = Run.violation
+
+    def spy_violation(self, factors, point, variables=()):
+        runs.append(self)
+        inside.append(1)
+        try:
+            return real_violation(self, factors, point, variables)
+        finally:
+            inside.pop()
+
+    monkeypatch.setattr(evaluate, "max_violation", spy_max)
+    monkeypatch.setattr(Run, "violation", spy_violation)
+    _solved()
+    run = runs[-1]
+    assert run.held, "nothing remembered"
+    held_once = set()
+    for fid, key, holds in evaluated:
+        assert (fid, key) not in held_once, "a factor that held was evaluated again at the same values"
+        if holds:
+            held_once.add((fid, key))
+    # at other values the factor is evaluated again; a violated call is not remembered
+    f, keys = next(iter(run.held.values()))
+    point = {u: np.asarray(next(iter(keys)) and 0.0) + 1e3 for u in f.variables}
+    n = len(evaluated)
+    first = run.violation([f], point)
+    assert len(evaluated) == n + 1
+    if first > 1e-6:
+        run.violation([f], point)
+        assert len(evaluated) == n + 2
