@@ -63,8 +63,10 @@ without a verdict (21354 factors); screened, 1308 of them are near at the relaxa
 MOTION_SCREEN_MIN = 16
 """Collision factors of one phase's motion NLP between fixed keyframes (`solve_motion`) from
 which it is screened too (each factor is a whole motion's rows against one body: `path_clear`
-is 6 distance rows at each of 18 waypoints). The Lab problems have at most a dozen per motion;
-stack_32 has 33-35 (every block and the table), of which a motion's start comes near 2-6."""
+is 6 distance rows at each of 18 waypoints). stack_16's motions have 18-36 (a `path_clear`
+per resting block and the table, a `carry_clear` per block when carrying), of which the
+interpolated start comes within SCREEN_DISTANCE of 2-6; a problem with a few objects has fewer
+than this and is not screened."""
 
 
 class CollisionScreen(CheckMemory):
@@ -136,9 +138,9 @@ class CollisionScreen(CheckMemory):
         margins at the start when the caller has them (its check of the start).
 
         Why: each motion carries a `path_clear` of its arm against every resting block, and
-        an ipopt iteration evaluates all of them (stack_32: 33-35 collision factors, ~3500
-        distance rows per motion, 65-70 iterations per moving arm), where the interpolated
-        start passes within SCREEN_DISTANCE of a handful of blocks. A motion is never a
+        an ipopt iteration evaluates all of them (stack_32: a moving arm took 65-70 ipopt
+        iterations over ~3500 distance rows), where the interpolated start passes within
+        SCREEN_DISTANCE of a handful of blocks (stack_16: 4-16 iterations screened). A motion is never a
         verdict, and its answer is accepted only after numpy checks every factor of m."""
         if not self.run.options.screen_collisions:
             return None
