@@ -95,6 +95,9 @@ class SolveOptions:
                                      # NLP, a loop iteration the whole graph's; on the planar
                                      # problems (17-120 factors) the batch only added NLPs (p6
                                      # 10 -> 23), on the Lab families (900+) it saves iterations
+    stretch_conflicts: bool = True   # gnpp: a conflict whose partial states repeat is learned with the
+                                     # repeats held for any number of steps when its subgraph ties them
+                                     # by equalities only (`gnppdsl.conflicts.stretch`)
     minimise_conflicts: bool = False  # gnpp: drop every fact of a conflict whose factors the
                                      # infeasibility does not need (`gnppdsl.conflicts.minimise`,
                                      # one NLP with restarts per fact)
