@@ -213,6 +213,21 @@ def test_work1_pushes_and_is_verified(work1_solved):
     assert r.plan[0].startswith("pick(stick, arm_s") and r.plan[1] == "push(b1, stick, arm_s)"
     rep = verify_solution(c.geometry, r)
     assert rep.ok, str(rep)
+    # the second verifier (no gnppdsl import): b1 rides on the stick and follows it along the push
+    import copy
+    import json
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from rebuilt_check import check as rebuilt_check
+    data = json.loads(json.dumps(r.to_json()))
+    rebuilt = rebuilt_check(data, WORK / "work1.pntc")
+    assert rebuilt.ok and rebuilt.keyframes == rep.keyframes, str(rebuilt)
+    # ... and finds b1 off the stick's end when its pose on the stick is moved 1 cm ahead
+    moved = copy.deepcopy(data)
+    pushed = next(st for st in moved["steps"] if "parent(b1) = stick" in st["state"])
+    pushed["values"]["pose(b1)"][1] += 0.01
+    pushed.pop("world", None)
+    assert any("b1 rides on stick 10.0 mm away" in f for f in rebuilt_check(moved, WORK / "work1.pntc").failures)
 
 
 @pytest.mark.slow
