@@ -64,6 +64,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "other objects of the same type (and pairs, e.g. block and arm) that "
                              "lifting cannot accept; the infeasible ones are learned with it (0: off). "
                              "Default: the problem's solver setting `batch_conflicts`, else 64")
+    parser.add_argument("--interleave-conflicts", action=argparse.BooleanOptionalAction, default=None,
+                        help="gnpp/rlgp: a learned conflict also forbids its copies with steps inserted "
+                             "or removed where its infeasible subgraph only passes values on (a parked "
+                             "base, an object staying put), so one geometric failure is not learned "
+                             "again per interleaving of other actions. Default: the problem's solver "
+                             "setting `interleave_conflicts`, else off")
+    parser.add_argument("--stretch-conflicts", action=argparse.BooleanOptionalAction, default=None,
+                        help="gnpp/rlgp: a conflict whose partial states repeat also forbids the repeats "
+                             "held for any number of steps. Default: the problem's solver setting "
+                             "`stretch_conflicts`, else off")
 
 
 #: seconds the hard alarm (`gnppdsl.interrupt.arm_time_limit`) waits after the loop's own
@@ -107,7 +117,8 @@ def _run(args: argparse.Namespace, start: float) -> int:
                 order=args.order, jit=args.jit, distance_curvature=args.distance_curvature,
                 kinematic_curvature=args.kinematic_curvature, planner=args.planner,
                 active_set=args.active_set, optimise=args.optimise, anytime=args.anytime,
-                batch_conflicts=args.batch_conflicts,
+                batch_conflicts=args.batch_conflicts, interleave_conflicts=args.interleave_conflicts,
+                stretch_conflicts=args.stretch_conflicts,
             )
             limit = options.time_limit
             left = limit - (time.monotonic() - start)

@@ -483,6 +483,12 @@ class SolverSettings:
     batch_conflicts
                 gnpp: NLPs per learned conflict spent deciding its renamings onto other objects
                 of the same type (`gnppdsl.conflicts.batch`; 0: off)
+    interleave_conflicts
+                gnpp: a conflict also forbids its copies with steps inserted or removed where its
+                subgraph relates consecutive steps only by chain equalities (`gnppdsl.conflicts.interleave`)
+    stretch_conflicts
+                gnpp: a conflict whose partial states repeat also forbids the repeats held for any
+                number of steps (`gnppdsl.conflicts.stretch`)
     """
 
     algorithm: str = "gnpp"
@@ -503,6 +509,8 @@ class SolverSettings:
     optimise: bool = True
     anytime: float = 0.0
     batch_conflicts: int = 64
+    interleave_conflicts: bool | None = None
+    stretch_conflicts: bool | None = None
 
     def merged(self, **overrides) -> "SolverSettings":
         """A copy with the given fields replaced (None values are ignored)."""
@@ -514,7 +522,7 @@ SOLVER_FIELDS: dict[str, type] = {
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
     "order": str, "jit": bool, "distance_curvature": bool,
     "kinematic_curvature": str, "planner": str, "optimise": bool,
-    "anytime": float, "batch_conflicts": int,
+    "anytime": float, "batch_conflicts": int, "interleave_conflicts": bool, "stretch_conflicts": bool,
 }
 
 #: accepted ranges of the numeric solver settings and their command-line twins (inclusive).

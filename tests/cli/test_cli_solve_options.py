@@ -204,3 +204,34 @@ def test_argparse_rejects_bad_choices_with_exit_2(capsys, argv):
         main(["solve", str(PLANAR / "p1_one_block.pntc"), *argv])
     assert exc.value.code == 2
     assert argv[0] in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("setting, argv, expected", [
+    (None, [], (False, False)),                                     # SolveOptions' defaults
+    (None, ["--interleave-conflicts"], (True, False)),
+    (None, ["--stretch-conflicts"], (False, True)),
+    ("interleave_conflicts = true  stretch_conflicts = true", [], (True, True)),
+    ("interleave_conflicts = true", ["--no-interleave-conflicts"], (False, False)),   # the command line wins
+])
+def test_conflict_generalisations_reach_the_loop_from_the_setting_and_the_command_line(
+        tmp_path, monkeypatch, setting, argv, expected):
+    """`--interleave-conflicts` / `--stretch-conflicts` and the solver settings of the same names
+    arrive in the options the loop gets (the loop's use of them is tested in tests/conflicts)."""
+    import gnppdsl
+
+    seen = []
+
+    def capture(compiled, options, progress=None):
+        seen.append((options.interleave_conflicts, options.stretch_conflicts))
+        raise KeyboardInterrupt
+
+    problem = PLANAR / "p1_one_block.pntc"
+    if setting is not None:
+        for f in PLANAR.glob("*"):
+            (tmp_path / f.name).write_bytes(f.read_bytes())
+        text = (tmp_path / "p1_one_block.pntc").read_text()
+        problem = tmp_path / "p1_one_block.pntc"
+        problem.write_text(text + f"\nsolver {{ {setting} }}\n")
+    monkeypatch.setattr(gnppdsl, "solve_problem", capture)
+    main(["solve", str(problem), "--quiet", *argv])
+    assert seen == [expected]
