@@ -564,8 +564,9 @@ class GraphNLPFactory:
         return [Obj(obj), self._world(obj, ctx, acc, a)]
 
     def _link_name(self, robot: str, e, ctx: _Ctx, acc: _Factor):
-        """The link named by `link(r, NAME)`: a role of the scene robot's `links:` (the domain
-        writes `link(r, "hand")`, the scene says which link that is) or a link name itself."""
+        """The link named by `link(r, NAME)` or `fk(r, q, NAME)`: a role of the scene robot's
+        `links:` (the domain writes `link(r, "hand")`, the scene says which link that is) or a
+        link (fk: frame) name itself."""
         name = self._resolve(e, ctx, acc)
         srobot = self.scene.robots.get(robot) if self.scene is not None else None
         if isinstance(name, Str) and srobot is not None and name.value in srobot.links:
@@ -579,7 +580,7 @@ class GraphNLPFactory:
         if srobot is None:
             raise error_at(e.span, f"{ctx.where}: fk of '{robot}', which is not a scene robot")
         if len(e.args) == 3:
-            frame = self._resolve(e.args[2], ctx, acc)
+            frame = self._link_name(robot, e.args[2], ctx, acc)     # a role of `links:`, or a frame
         else:
             if not srobot.ee:
                 raise error_at(e.span, f"{ctx.where}: robot '{robot}' has no `ee` frame in the scene")

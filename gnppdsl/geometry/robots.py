@@ -22,7 +22,7 @@ import numpy as np
 
 from gnppdsl.errors import UserError
 from gnppdsl.geometry.shapes import convex_from_points, shape_vertices
-from gnppdsl.ir.robot_files import resolve_model_files, robot_data_share
+from gnppdsl.ir.robot_files import default_locked, resolve_model_files, robot_data_share
 from gnppdsl.ir.scene_model import SceneRobot
 
 _BIG = 1e10   # pinocchio marks "no limit" with +-DBL_MAX
@@ -286,10 +286,7 @@ def _load_cached(name, model_name, urdf, srdf, package_dirs, base, ee, locked_it
         geom_full = pin.buildGeomFromUrdf(full, urdf, pin.GeometryType.COLLISION, package_dirs=pkg)
     except Exception as e:  # pinocchio raises ValueError / RuntimeError with its own text
         raise UserError(f"robot {name}: cannot load URDF {urdf}: {e}") from None
-    locked = dict(locked_items)
-    if model_name and model_name.startswith("panda") and not locked:
-        # Planning uses the arm; the fingers are fixed (open) unless the scene says otherwise.
-        locked = {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
+    locked = dict(locked_items) or default_locked(model_name)
     q_ref = pin.neutral(full)
     lock_ids = []
     for jname, val in locked.items():

@@ -181,26 +181,38 @@ class ProblemResolver:
 
     def check_link_names(self, dom: M.Domain, scene) -> None:
         """Every `link(r, "NAME")` of a template some rule calls names, for a robot of the
-        scene, a role of its `links:` or a link of its URDF that has collision geometry; else
+        scene, a role of its `links:` or a link of its URDF that has collision geometry, and every
+        `fk(r, q, "NAME")` a role, a link or a joint (a frame of the model); else
         the error stands at the name (read from the URDF's text, as the scene's `links:` are:
         no robot model is loaded). Which robot `r` is, grounding decides; here any URDF robot
         of the scene will do, which catches misspelt names and another robot's links."""
-        from gnppdsl.ir.scene import urdf_collision_links
+        from gnppdsl.ir.scene import urdf_collision_links, urdf_frames
 
         names: set[str] = set()
+        frames: set[str] = set()
         for spec in scene.robots.values():
             if spec.kind != "urdf":
                 continue
-            known = urdf_collision_links(spec.model, spec.urdf)
-            if known is None:
+            known, every = urdf_collision_links(spec.model, spec.urdf), urdf_frames(spec.model, spec.urdf)
+            if known is None or every is None:
                 return                  # the robot cannot be read: loading it reports that
             names |= set(known) | set(spec.links)
+            frames |= set(every) | set(spec.links) | ({spec.ee} if spec.ee else set())
         if not names:
             return
         called = {c.template for rule in dom.rules for c in rule.calls}
         seen: set[int] = set()
         for t in (dom.templates[n] for n in called if n in dom.templates):
             for node in _walk(t.body):
+                if isinstance(node, Call) and node.fn == "fk" and len(node.args) == 3 \
+                        and isinstance(node.args[2], Str) and node.args[2].value not in frames:
+                    at = node.args[2].span or node.span or t.span
+                    robots = ", ".join(sorted(n for n, r in scene.robots.items() if r.kind == "urdf"))
+                    self.err(at, f"frame '{node.args[2].value}' (template {t.name}): no robot of scene "
+                             f"{Path(scene.path).name} ({robots}) has a link, joint or `links:` role of "
+                             "that name", "unknown-link",
+                             did_you_mean(node.args[2].value, sorted(frames))
+                             or "name a role of the scene robot's `links:` or a link of its URDF")
                 if isinstance(node, Call) and node.fn == "link" and len(node.args) == 2 \
                         and isinstance(node.args[1], Str) and node.args[1].value not in names:
                     at = node.args[1].span or node.span or t.span

@@ -82,3 +82,13 @@ def resolve_model_files(name: str) -> tuple[str, str | None, str]:
     if srdf is not None and not os.path.isfile(srdf):
         srdf = None
     return urdf, srdf, share
+
+
+def default_locked(model_name: str | None) -> dict[str, float]:
+    """The joints locked when a scene robot gives no `locked:`: a Panda's two finger joints,
+    open (planning moves the arm; the gripper's width is fixed). One rule, read both by the
+    geometry layer that builds the reduced model and by the scene check that counts the
+    configuration's coordinates against `home`."""
+    if model_name and model_name.startswith("panda"):
+        return {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
+    return {}

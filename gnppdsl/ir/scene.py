@@ -122,8 +122,9 @@ def _short(text: str, n: int = 80) -> str:
 
 
 @functools.lru_cache(maxsize=32)
-def _urdf_names(urdf: str) -> tuple[frozenset[str], frozenset[str]] | None:
-    """(links with collision geometry, joints that move) of a URDF file, from its XML."""
+def _urdf_names(urdf: str) -> tuple | None:
+    """(links with collision geometry, joints that move, (name, type) of each joint that moves,
+    every link and joint name: the frames of pinocchio's model) of a URDF file, from its XML."""
     import xml.etree.ElementTree as ET
 
     from gnppdsl.inputs import ROBOT_SUFFIXES, InputError, read_text
@@ -132,11 +133,15 @@ def _urdf_names(urdf: str) -> tuple[frozenset[str], frozenset[str]] | None:
         root = ET.fromstring(read_text(urdf, ROBOT_SUFFIXES, "robot model"))
     except (InputError, ET.ParseError):
         return None        # load_robot reports an unreadable URDF
-    return (frozenset(ln.get("name") for ln in root.iter("link") if ln.find("collision") is not None),
-            frozenset(j.get("name") for j in root.iter("joint") if j.get("type") != "fixed"))
+    # the robot's own <joint>s and <link>s only: a <transmission> or <gazebo> block names joints
+    # too (the PR2's caster wheels), which pinocchio's model does not have
+    moving = tuple((j.get("name"), j.get("type")) for j in root.findall("joint") if j.get("type") != "fixed")
+    return (frozenset(ln.get("name") for ln in root.findall("link") if ln.find("collision") is not None),
+            frozenset(n for n, _ in moving), moving,
+            frozenset(x.get("name") for x in root.findall("link") + root.findall("joint")))
 
 
-def _urdf_of(model: str | None, urdf: str | None) -> tuple[frozenset[str], frozenset[str]] | None:
+def _urdf_of(model: str | None, urdf: str | None):
     if urdf is None and model is not None:
         from gnppdsl.errors import UserError
         from gnppdsl.ir.robot_files import resolve_model_files
@@ -155,10 +160,46 @@ def urdf_collision_links(model: str | None, urdf: str | None) -> frozenset[str] 
     return None if names is None else names[0]
 
 
+def urdf_frames(model: str | None, urdf: str | None) -> frozenset[str] | None:
+    """Every frame `fk(r, q, NAME)` may name: the URDF's links and joints (pinocchio makes a
+    frame of each), read from the XML."""
+    names = _urdf_of(model, urdf)
+    return None if names is None else names[3]
+
+
 def urdf_joints(model: str | None, urdf: str | None) -> frozenset[str] | None:
     """The joints of a robot's URDF that move (not `fixed`): what `locked:` may name."""
     names = _urdf_of(model, urdf)
     return None if names is None else names[1]
+
+
+# coordinates of a configuration per URDF joint type (a continuous joint is one angle, as the
+# geometry layer's JointCoord keeps it) and per scene `base_joint`
+_JOINT_COORDS = {"revolute": 1, "continuous": 1, "prismatic": 1, "planar": 3, "floating": 7}
+_BASE_COORDS = {"fixed": 0, "planar": 3, "free": 7}
+
+
+def configuration_size(model: str | None, urdf: str | None, base_joint: str | None,
+                       locked: dict[str, float]) -> tuple[int, str] | None:
+    """How many numbers a robot's configuration (and so its `home`) has, with a description of
+    where they come from; None when the URDF cannot be read (loading the robot reports that).
+
+    Counted from the URDF's text, as `links:` and `locked:` are checked, so that `gnpp check`
+    finds a `home` of the wrong length without pinocchio (the solve met it as an unlocated
+    "constraint sides have lengths 10 and 9")."""
+    from gnppdsl.ir.robot_files import default_locked
+
+    names = _urdf_of(model, urdf)
+    if names is None:
+        return None
+    locked = locked or default_locked(model)
+    free = [(n, t) for n, t in names[2] if n not in locked]
+    joints = sum(_JOINT_COORDS.get(t, 1) for _, t in free)
+    base = _BASE_COORDS.get(base_joint or "fixed", 0)
+    parts = ([f"{base_joint} base {base}"] if base else []) + [f"{len(free)} joints that move"]
+    if locked:
+        parts.append(f"{len(locked)} locked")
+    return base + joints, ", ".join(parts)
 
 
 # ----------------------------------------------------------------------------------------
@@ -466,6 +507,12 @@ class _Loader:
                 locked[k] = self.number(vn, f"locked joint '{k}'")
         links = self.links(name, m["links"][1], model, urdf) if "links" in m else {}
         home = self.numbers(m["home"][1], "home") if "home" in m else ()
+        if home:
+            size = configuration_size(model, urdf, attrs.get("base_joint"), locked)
+            if size is not None and len(home) != size[0]:
+                self.error(m["home"][1], f"robot '{name}': home has {len(home)} values, its configuration "
+                           f"has {size[0]} ({size[1]})", "scene",
+                           "one value per coordinate: the base's first, then one per joint that moves and is not locked")
         held = self.pose(m["held_pose"][1], 3) if "held_pose" in m else None
         shape = self.shape(m["shape"][1], m, 3) if "shape" in m else None
         return SceneRobot(name, "urdf", model=model, urdf=urdf, srdf=srdf, package_dirs=pdirs, base=base,

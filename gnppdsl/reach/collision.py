@@ -44,6 +44,29 @@ def static_obstacles(scene, robot: str, names=None) -> list[Obstacle]:
     return out
 
 
+def bounding_sphere(shape) -> tuple[np.ndarray, float]:
+    """Centre (shape frame) and radius of a sphere that holds the whole convex coal shape: the
+    broadphase bound of `CollisionChecker.config_free`. Exact for the primitives (a box's half
+    diagonal, a cylinder's rim); a convex hull's is the largest vertex distance from the centre
+    of its vertices' box."""
+    import coal
+    if isinstance(shape, coal.Box):
+        return np.zeros(3), float(np.linalg.norm(shape.halfSide))
+    if isinstance(shape, coal.Sphere):
+        return np.zeros(3), float(shape.radius)
+    if isinstance(shape, coal.Cylinder):
+        return np.zeros(3), float(np.hypot(shape.radius, shape.halfLength))
+    if isinstance(shape, coal.Capsule):
+        return np.zeros(3), float(shape.radius + shape.halfLength)
+    if isinstance(shape, coal.Cone):
+        return np.zeros(3), float(np.hypot(shape.radius, shape.halfLength))
+    if hasattr(shape, "points"):
+        pts = np.array(shape.points())
+        c = (pts.min(axis=0) + pts.max(axis=0)) / 2
+        return c, float(np.max(np.linalg.norm(pts - c, axis=1)))
+    return np.zeros(3), np.inf            # unknown kind: never skipped
+
+
 def _tf(T: np.ndarray):
     import coal
     return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
@@ -80,17 +103,51 @@ class CollisionChecker:
         self._self_pairs = [(idx[a], idx[b]) for a, b in robot.self_pairs if a in idx and b in idx] \
             if self_collision else []
         self.checks = 0           # configurations checked (for statistics)
+        self._spheres()
+
+    def _spheres(self) -> None:
+        """Broadphase data: a bounding sphere per link shape (centre in its link's frame) and per
+        obstacle (world), and every pair `min_distance` measures flattened to shape level."""
+        link_of, centre, radius, shape_index = [], [], [], []
+        for i, (_, _, shapes) in enumerate(self._links):
+            shape_index.append([])
+            for s, P in shapes:
+                c, r = bounding_sphere(s)
+                shape_index[i].append(len(link_of))
+                link_of.append(i)
+                centre.append(P[:3, :3] @ c + P[:3, 3])
+                radius.append(r)
+        self._sh_link = np.array(link_of, dtype=int)
+        self._sh_centre = np.array(centre, dtype=float).reshape(-1, 3)
+        self._sh_radius = np.array(radius, dtype=float)
+        self._sh_local = [(i, k) for i, (_, _, shapes) in enumerate(self._links) for k in range(len(shapes))]
+        ob_c, ob_r = [], []
+        for o in self.obstacles:
+            c, r = bounding_sphere(o.shape)
+            ob_c.append(o.T[:3, :3] @ c + o.T[:3, 3])
+            ob_r.append(r)
+        ob_c = np.array(ob_c, dtype=float).reshape(-1, 3)
+        env = [(a, j) for i, j in self._env_pairs for a in shape_index[i]]
+        self._env_a = np.array([a for a, _ in env], dtype=int)
+        self._env_o = np.array([j for _, j in env], dtype=int)
+        self._env_oc = ob_c[self._env_o] if env else np.zeros((0, 3))
+        self._env_r = (self._sh_radius[self._env_a] + np.array(ob_r)[self._env_o]) if env else np.zeros(0)
+        own = [(a, b) for i, k in self._self_pairs for a in shape_index[i] for b in shape_index[k]]
+        self._self_a = np.array([a for a, _ in own], dtype=int)
+        self._self_b = np.array([b for _, b in own], dtype=int)
+        self._self_r = self._sh_radius[self._self_a] + self._sh_radius[self._self_b] if own else np.zeros(0)
 
     # -- primitives -----------------------------------------------------------------------------
-    def _link_tfs(self, q) -> list:
+    def _link_poses(self, q) -> list[np.ndarray]:
+        """World pose (4x4) of every link at configuration q."""
         pin = self._pin
         pin.framesForwardKinematics(self.robot.model, self._data, self.robot.to_pin_q(q))
         B = self.robot.base
-        out = []
-        for _, fid, shapes in self._links:
-            W = B @ np.array(self._data.oMf[fid].homogeneous)
-            out.append([(s, _tf(W @ P)) for s, P in shapes])
-        return out
+        return [B @ np.array(self._data.oMf[fid].homogeneous) for _, fid, _ in self._links]
+
+    def _link_tfs(self, q) -> list:
+        return [[(s, _tf(W @ P)) for s, P in shapes]
+                for W, (_, _, shapes) in zip(self._link_poses(q), self._links)]
 
     def _dist(self, sa, Ta, sb, Tb) -> float:
         res = self._coal.DistanceResult()
@@ -121,8 +178,49 @@ class CollisionChecker:
         return best, which
 
     def config_free(self, q) -> bool:
-        """Clear of every obstacle (and itself) by at least the margin."""
-        return self.min_distance(q, stop_below=self.margin)[0] >= self.margin
+        """Clear of every obstacle (and itself) by at least the margin: the same decision as
+        `min_distance(q)[0] >= margin`, with a broadphase first. A pair whose bounding spheres
+        are farther apart than the margin cannot be closer, so only the others go to coal
+        (nearest bound first, stopping at the first pair closer than the margin). The graph
+        checks thousands of configurations per query, most of whose pairs are far apart
+        (sort2: 1,525 checks, ~1 ms each with every pair measured). Written with numpy rather
+        than coal's broadphase managers because the pairs are a fixed, filtered list (SRDF,
+        `ignore_collisions`, base links) and the self pairs need the same filter."""
+        self.checks += 1
+        W = np.array(self._link_poses(q))
+        if not len(self._sh_link):
+            return True
+        Wl = W[self._sh_link]
+        centre = np.einsum("nij,nj->ni", Wl[:, :3, :3], self._sh_centre) + Wl[:, :3, 3]
+        bound_env = np.linalg.norm(centre[self._env_a] - self._env_oc, axis=1) - self._env_r \
+            if len(self._env_a) else np.zeros(0)
+        bound_self = np.linalg.norm(centre[self._self_a] - centre[self._self_b], axis=1) - self._self_r \
+            if len(self._self_a) else np.zeros(0)
+        tfs: dict[int, object] = {}
+
+        def tf(a: int):
+            if a not in tfs:
+                i, k = self._sh_local[a]
+                tfs[a] = _tf(W[i] @ self._links[i][2][k][1])
+            return tfs[a]
+
+        for n in np.argsort(bound_env, kind="stable"):
+            if bound_env[n] >= self.margin:
+                break
+            a = self._env_a[n]
+            _, so, To = self._obs_tf[self._env_o[n]]
+            if self._dist(self._links[self._sh_local[a][0]][2][self._sh_local[a][1]][0], tf(a), so, To) \
+                    < self.margin:
+                return False
+        for n in np.argsort(bound_self, kind="stable"):
+            if bound_self[n] >= self.margin:
+                break
+            a, b = self._self_a[n], self._self_b[n]
+            sa = self._links[self._sh_local[a][0]][2][self._sh_local[a][1]][0]
+            sb = self._links[self._sh_local[b][0]][2][self._sh_local[b][1]][0]
+            if self._dist(sa, tf(a), sb, tf(b)) < self.margin:
+                return False
+        return True
 
     def point_free(self, x) -> bool:
         """g_prec of Eq. 2: the end-effector target itself is not inside an obstacle."""

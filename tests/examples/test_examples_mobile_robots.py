@@ -23,22 +23,22 @@ def test_pr2_problems_check(name):
     assert rep.ok, rep.render()
 
 
-def _ground_links(problem: str) -> set[str]:
+def _ground_links(problem: str | Path, fn: str = "link", arg: int = 1) -> set[str]:
     """The link names of the ground factors of pick(red1) then drop(red1) (`link(r, NAME)`
-    as the factory resolved it)."""
+    as the factory resolved it; `fn="fk", arg=2`: the frames of `fk(r, q, NAME)`)."""
     from gnppdsl import ir
     from gnppdsl.compile.semantics import parse_plan, plan_states
     from gnppdsl.ir.expr import Call, Str
     from gnppdsl.solve.compiled import compile_problem
 
-    c = compile_problem(ir.load_problem(MOBILE / problem))
+    c = compile_problem(ir.load_problem(MOBILE / problem if isinstance(problem, str) else problem))
     states = plan_states(c.task, parse_plan(c.task, "pick(red1, mm, center); drop(red1, mm, red_tray)"))
     names: set[str] = set()
 
     def walk(x):
-        if isinstance(x, Call) and x.fn == "link":
-            assert isinstance(x.args[1], Str), x
-            names.add(x.args[1].value)
+        if isinstance(x, Call) and x.fn == fn and len(x.args) > arg:
+            assert isinstance(x.args[arg], Str), x
+            names.add(x.args[arg].value)
         if isinstance(x, (tuple, list)):
             for a in x:
                 walk(a)
@@ -226,3 +226,121 @@ def test_links_of_a_robot_whose_urdf_is_a_fifo_are_not_read(tmp_path):
                          capture_output=True, text=True, timeout=120, env=env, cwd=MOBILE.parents[1])
     assert out.returncode == 2, out.stdout + out.stderr
     assert "Traceback" not in out.stderr and "FIFO" in out.stdout + out.stderr, out.stdout + out.stderr
+
+
+def _scene_robots():
+    """Every URDF robot of every bundled scene (Lab, Field, Workshop, mobile, scalability)."""
+    from gnppdsl.ir.scene import load_scene_file
+
+    ex = MOBILE.parent
+    out = {}
+    for y in sorted(ex.glob("*/*.yaml")):
+        if y.name == "expected.yaml":
+            continue
+        try:
+            sc = load_scene_file(y)
+        except Exception:          # not a scene (a settings file): nothing to count
+            continue
+        for r in sc.robots.values():
+            if r.kind == "urdf":
+                out[(r.model, r.urdf, r.attributes.get("base_joint"), tuple(sorted(r.locked.items())))] = r
+    return list(out.values())
+
+
+def test_configuration_size_from_the_urdf_text_equals_pinocchios_reduced_model():
+    """`configuration_size` counts a robot's coordinates from the URDF's XML (no pinocchio, for
+    `gnpp check`); the oracle is the geometry layer's pinocchio model after locking. Over every
+    distinct robot of the bundled scenes (Panda fixed and on a planar base, the PR2 with 23
+    locked joints and two continuous ones), plus the PR2 with its left arm moving too."""
+    import dataclasses
+
+    from gnppdsl.geometry.robots import load_robot
+    from gnppdsl.ir.scene import configuration_size
+
+    robots = _scene_robots()
+    assert {r.model for r in robots} >= {"panda", "pr2"} and len(robots) >= 3
+    pr2 = next(r for r in robots if r.model == "pr2")
+    arm_free = {k: v for k, v in pr2.locked.items() if not k.startswith("l_") or "gripper" in k}
+    robots.append(dataclasses.replace(pr2, locked=arm_free, home=()))
+    for r in robots:
+        size = configuration_size(r.model, r.urdf, r.attributes.get("base_joint"), r.locked)
+        assert size is not None and size[0] == load_robot(r).nc, (r.model, r.locked, size)
+    assert size[0] == 17                              # 3 base + 7 right arm + 7 left arm
+
+
+def test_a_home_of_the_wrong_length_is_a_located_error(tmp_path):
+    """A home one value short (the Panda on a planar base: 3 + 7 numbers) or long (the PR2) is an
+    error of `gnpp check` at the value, saying how many the configuration has; before, the check
+    passed and the solve stopped with an unlocated "constraint sides have lengths 10 and 9"."""
+    d = _copy(tmp_path)
+    for scene, old, new, problem in (
+            ("sorting_setting.yaml", "home: [0, -1.1, 1.5708, 0, -0.5, 0, -2.0, 0, 1.6, 0.8]",
+             "home: [0, -1.1, 1.5708, 0, -0.5, 0, -2.0, 0, 1.6]", "sort2.pntc"),
+            ("sorting_pr2_setting.yaml", "home: [0, -1.15, 1.5708, -0.4, 0.2, -0.2, -1.7, 0, -0.9, 0]",
+             "home: [0, -1.15, 1.5708, -0.4, 0.2, -0.2, -1.7, 0, -0.9, 0, 0]", "pick_place3_pr2.pntc")):
+        s = (d / scene).read_text()
+        assert s.count(old) == 1
+        (d / scene).write_text(s.replace(old, new))
+        line = next(i for i, t in enumerate(s.splitlines(), 1) if old in t)
+        rep = check_files([str(d / problem)])
+        assert not rep.ok
+        x = _at(rep.reporter.diagnostics, scene, line, s.splitlines()[line - 1].index("[") + 1, "scene")
+        assert "its configuration has 10 (planar base 3, 7 joints that move" in x.message, x.message
+        assert len(rep.reporter.errors) == 1
+        (d / scene).write_text(s)
+        assert check_files([str(d / problem)]).ok
+
+
+def test_a_joint_named_only_in_a_transmission_cannot_be_locked(tmp_path):
+    """The PR2's URDF names its caster wheel joints in <transmission> blocks only; pinocchio's
+    model has no such joint, so locking one is an unknown-joint error (it passed the check and
+    failed the solve while the check read every <joint> element of the file)."""
+    d = _copy(tmp_path)
+    s = (d / "sorting_pr2_setting.yaml").read_text()
+    s = s.replace("l_wrist_roll_joint: -0.09}", "l_wrist_roll_joint: -0.09, fl_caster_rotation_joint: 0}")
+    (d / "sorting_pr2_setting.yaml").write_text(s)
+    rep = check_files([str(d / "sort_random_pr2.pntc")])
+    assert [e.kind for e in rep.reporter.errors] == ["unknown-joint"]
+    assert "fl_caster_rotation_joint" in rep.reporter.errors[0].message
+
+
+def _with_wrist_height(d: Path, role: str) -> None:
+    """The mobile domain plus a template on `fk(r, q(r), ROLE)` (the wrist above the floor)."""
+    dom = (d / "domain.pntc").read_text()
+    old = "template base_clear(r: object, t: object) tags collision {\n"
+    assert dom.count(old) == 1
+    dom = dom.replace(old, old + f'  pos(fk(r, q(r), "{role}"))[2] >= 0.0\n')
+    (d / "domain.pntc").write_text(dom)
+
+
+@pytest.mark.parametrize("problem, links, ee", [
+    ("sort_random_pr2.pntc", {"base_link", "r_forearm_link", "r_wrist_flex_link", "r_gripper_palm_link"},
+     "r_gripper_tool_frame"),
+    ("sort_random.pntc", {"panda_link0", "panda_link5", "panda_link6", "panda_hand"}, "panda_hand_tcp"),
+])
+def test_fk_takes_a_role_as_link_does(tmp_path, problem, links, ee):
+    """`fk(r, q, "wrist")` grounds to the scene robot's link for the role, as `link(r, "wrist")`
+    does (before, the role "wrist" went to pinocchio as a frame name and the solve failed): the
+    ground fk frames are the robot's links (of link(), posed by fk) and its `ee` (the two-argument
+    fk), and no role."""
+    d = _copy(tmp_path)
+    _with_wrist_height(d, "wrist")
+    assert check_files([str(d / problem)]).ok
+    assert _ground_links(d / problem, "fk", 2) == links | {ee}
+
+
+def test_an_unknown_fk_frame_is_located(tmp_path):
+    """A misspelt frame or role in `fk(r, q, NAME)` is an error of `gnpp check` at the string;
+    a URDF joint name is a frame (pinocchio makes one per joint) and passes."""
+    d = _copy(tmp_path)
+    _with_wrist_height(d, "wirst")
+    text = (d / "domain.pntc").read_text().splitlines()
+    line = next(i for i, t in enumerate(text, 1) if '"wirst"' in t)
+    rep = check_files([str(d / "sort_random_pr2.pntc")])
+    x = _at(rep.reporter.diagnostics, "domain.pntc", line, text[line - 1].index('"wirst"') + 1, "unknown-link")
+    assert "frame 'wirst'" in x.message and "'wrist'" in (x.hint or "")
+    d2 = tmp_path / "joint"
+    d2.mkdir()
+    _copy(d2)
+    _with_wrist_height(d2, "r_wrist_flex_joint")
+    assert check_files([str(d2 / "sort_random_pr2.pntc")]).ok

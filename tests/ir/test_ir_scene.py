@@ -57,7 +57,7 @@ def test_full_3d_scene(tmp_path):
         workspace: [[-1, -1, 0], [1, 1, 1.5]]
         robots:
           left_arm: {model: panda, base: {xyz: [-0.4, -0.3, 0.6], rpy: [0, 0, 1.5708]}, ee: panda_hand_tcp,
-                     locked: {panda_finger_joint1: 0.04}, home: [0, -0.5, 0], max_step: 0.3}
+                     locked: {panda_finger_joint1: 0.04}, home: [0, -0.5, 0, -2, 0, 1.6, 0.8, 0.04], max_step: 0.3}
         objects:
           table: {shape: box, size: [2.3, 1.24, 0.05], pose: {xyz: [0, 0, 0.575]}, static: true, color: brown}
           b1: {shape: box, size: [0.06, 0.15, 0.09], pose: {xyz: [0.1, 0.2, 0.07], rpy: [0.3, -0.2, 1.0]},
@@ -70,7 +70,7 @@ def test_full_3d_scene(tmp_path):
     assert s.name == "lab" and s.dimension == 3 and s.workspace == ((-1, -1, 0), (1, 1, 1.5))
     arm = s.robots["left_arm"]
     assert arm.kind == "urdf" and arm.model == "panda" and arm.ee == "panda_hand_tcp"
-    assert arm.locked == {"panda_finger_joint1": 0.04} and arm.home == (0, -0.5, 0)
+    assert arm.locked == {"panda_finger_joint1": 0.04} and arm.home == (0, -0.5, 0, -2, 0, 1.6, 0.8, 0.04)
     assert arm.attributes == {"max_step": 0.3}
     np.testing.assert_allclose(rot_quat(arm.base[3:]), rot_rpy(0, 0, 1.5708), atol=1e-9)
     table, b1 = s.objects["table"], s.objects["b1"]
