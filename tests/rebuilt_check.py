@@ -1,4 +1,4 @@
-"""A second verifier of Lab and mobile solutions that imports nothing from gnppdsl (issue 25).
+"""A second verifier of Lab, Workshop and mobile solutions that imports nothing from gnppdsl (issue 25).
 
 Why: `gnppdsl.solve.verify_solution` already recomputes a solution with pinocchio and coal
 instead of the solver's casadi factors, but it still reads the scene through the project's
@@ -16,7 +16,9 @@ It checks, at every keyframe and every trajectory waypoint:
 - grasp: the end effector of FK(q(r)) lies inside the held object's box, and a held object
   follows the end effector along the motion;
 - placement: an object whose parent is a scene body or object rests on it (bottom on top,
-  centre over the top face);
+  centre over the top face); one whose parent is an object a robot holds (a block on the
+  Workshop's stick) touches that object and rests on a static body, and follows it along the
+  motion;
 - collisions: every robot link's URDF collision mesh against every object and static body
   (`coal.collide` on the meshes themselves, a touch deeper than 0.1 mm on hulls of its own:
   the solver's tolerance, `CONTACT_TOLERANCE`; a fixed base's
@@ -253,8 +255,14 @@ def check(result: dict, problem: Path | None = None, margin: float = 1e-3, place
             p = facts.get(f"parent({o})")
             if b.static or p is None or p in robots or p not in bodies:
                 continue
+            if p in held:                               # riding on a held tool (a pushed block)
+                _riding(rep, f"s{i}", o, world, bodies, p, place_tol)
+                continue
             _resting(rep, f"s{i}", o, world[o], bodies[o], p, world[p], bodies[p], place_tol)
         rel = {o: _se3(st["values"][f"pose({o})"]) for o in held}      # held: relative to the ee
+        # riding on a held object (a block on the stick's end): relative to that object
+        riders = {o: (facts[f"parent({o})"], _se3(st["values"][f"pose({o})"])) for o in bodies
+                  if facts.get(f"parent({o})") in held and f"pose({o})" in st["values"]}
         paths = {next(x for x in robots if result["robots"][x]["trajectory"] == key): path
                  for key, path in (st.get("trajectories") or {}).items() if path}
         # robots moving in the same phase move together: waypoint k of each at once (their
@@ -269,6 +277,8 @@ def check(result: dict, problem: Path | None = None, margin: float = 1e-3, place
                 ww = dict(world)
                 for o, r2 in held.items():
                     ww[o] = T[r2] * rel[o]
+                for o, (p, r_o) in riders.items():
+                    ww[o] = ww[p] * r_o
                 _state(rep, f"s{i}->s{i + 1} waypoint {k}", robots, bodies, ww, qw, held, ignore, margin)
     final = _facts(steps[-1]["state"])
     for var, val in _goal(problem).items():
@@ -374,6 +384,22 @@ def _state(rep: Report, where: str, robots, bodies, world, qs, held, ignore, mar
                               coal.DistanceRequest(), res)
             if d < -margin:
                 rep.failures.append(f"{where}: {a} and {b} overlap by {-d * 1000:.1f} mm")
+
+
+def _riding(rep, where, o, world, bodies, tool, tol) -> None:
+    """An object whose parent is an object a robot holds (a block pushed by the stick's end)
+    touches that object and rests on a static body (it slides on the table)."""
+    d = coal.distance(bodies[o].shape, _tf(world[o]), bodies[tool].shape, _tf(world[tool]),
+                      coal.DistanceRequest(), coal.DistanceResult())
+    if d > tol:
+        rep.failures.append(f"{where}: {o} rides on {tool} {d * 1000:.1f} mm away from it")
+    for s, b in bodies.items():
+        probe = Report()
+        if b.static:
+            _resting(probe, where, o, world[o], bodies[o], s, world[s], b, tol)
+            if not probe.failures:
+                return
+    rep.failures.append(f"{where}: {o} rides on {tool} but rests on no static body")
 
 
 def _resting(rep, where, o, To, bo, p, Tp, bp, tol) -> None:

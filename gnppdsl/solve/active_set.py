@@ -64,12 +64,21 @@ def _parents(result: Any, step: int) -> dict[str, str]:
 def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | None, str, str, float]]:
     """(step, waypoint, body a, body b, distance) of every covered pair the verification found
     closer than margin + near (`verify`), except resting and grasp contacts (an object with its
-    parent)."""
+    parent) and the sliding contact of an object riding on a held tool with the static body it
+    rests on at the motion's first keyframe (`SolutionReport.riding`; the domain's push rows,
+    stdlib/tools.pntc `push_path`, keep it on that support's plane along the motion, and the
+    verification still checks the pair at its resting margin). Why: a pushed block slides on
+    the table at signed distance 0, where the witness points jump; its rows, fixed keyframes
+    at each end, stalled every repair NLP of the push motion at 1e-5 .. 1e-4 (Work_1 seed 0,
+    `avoid(table, b1)` at waypoints 6-11 of motion 2) and sent it on to the joint solves."""
     out = []
     owner = lambda x: x.split("/", 1)[0]       # noqa: E731
+    riding = getattr(report, "riding", {})
     for step, wp, a, b, d in report.near:
         parents = _parents(result, step)
         if parents.get(a) == owner(b) or parents.get(b) == owner(a):
+            continue
+        if b in riding.get((step, a), ()) or a in riding.get((step, b), ()):
             continue
         out.append((step, wp, a, b, d))
     return out

@@ -204,8 +204,9 @@ class Run(ReachabilityCosts):
             t1, c1 = time.perf_counter(), _cpu()
             batched = self.batch(plan, sub_factors, instances)
             t0, c0 = t0 + time.perf_counter() - t1, c0 + _cpu() - c1
+        stretched = self.stretched(sub_factors, seq, instances + batched)
         known = seq in set(self.planner.conflicts)
-        new = self.planner.add_lifted(instances + batched)
+        new = self.planner.add_lifted(instances + batched + stretched)
         if known or not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
@@ -221,7 +222,22 @@ class Run(ReachabilityCosts):
         self.stats.conflict_instances += new
         lifted = f" (+{len(others)} symmetric instances)" if others else ""
         lifted += f" (+{len(batched)} batch-learned)" if batched else ""
+        lifted += f" (+{len(stretched)} stretched)" if stretched else ""
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
+
+    def stretched(self, sub_factors: Sequence[FactorInstance], seq, instances: Sequence) -> list:
+        """The instances with their runs of repeated partial states held for any other number
+        of steps (`gnppdsl.conflicts.stretch`: sound when M ties the run's steps by equalities
+        only), up to the plan length the planner may reach (`max_horizon` actions)."""
+        from gnppdsl.conflicts.stretch import stretchable_runs, stretched
+
+        if not self.options.stretch_conflicts:
+            return []
+        runs = stretchable_runs(sub_factors, seq)
+        out: list = []
+        for inst in instances if runs else ():
+            out += [s for s in stretched(inst, runs, self.options.max_horizon + 1) if s not in out]
+        return out
 
     def batch(self, plan: Plan, sub_factors: Sequence[FactorInstance], instances: Sequence) -> list:
         """The conflict's renamed candidates that are infeasible (`gnppdsl.conflicts.batch`):

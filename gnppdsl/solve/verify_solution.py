@@ -110,6 +110,9 @@ class SolutionReport:
     min_distance: float = np.inf          # smallest pair distance seen (keyframes, waypoints, midpoints)
     # (step, waypoint, body a, body b, distance) of every checked pair closer than `near`
     near: list[tuple] = field(default_factory=list)
+    # (step i, object) -> the static bodies an object riding on a held tool rests on at keyframe
+    # s_i (`placement`): its sliding contact, a resting contact like an object's with its parent
+    riding: dict[tuple[int, str], tuple[str, ...]] = field(default_factory=dict)
 
     @property
     def failures(self) -> list[str]:
@@ -263,7 +266,7 @@ def verify_solution(ctx: Any, result: Any, *, margin: float = -1e-3, robot_margi
                 if why:
                     fail(Failure("grasp", i, None, (o, p), None, f"of {o} by {p}: {why}"))
             elif p in w.parents and w.parents[p] in sc.robots:
-                why = _riding_failure(ctx, o, To, p, w.matrix(p), rest_tolerance)
+                why, rep.riding[(i, o)] = _riding_failure(ctx, o, To, p, w.matrix(p), rest_tolerance)
                 if why:
                     fail(Failure("placement", i, None, (o, p), None, why))
             elif _shapeless(sc, p):
@@ -328,19 +331,21 @@ def plan_failures(result: Any) -> list[Failure]:
 
 
 def _riding_failure(ctx: Any, obj: str, To: np.ndarray, tool: str, Tt: np.ndarray,
-                    tol: float) -> str | None:
+                    tol: float) -> tuple[str | None, tuple[str, ...]]:
     """An object whose parent is a tool a robot holds (a block pushed by a stick,
     stdlib/tools.pntc) touches the tool and rests on a static scene body (it slides on the
-    table). None if so, else the reason. Why not `resting_on(obj, tool)`: the object is pushed
-    by the tool's end, it does not lie on top of it."""
+    table). (None, the static bodies it rests on) if so, else (the reason, those bodies). Why
+    not `resting_on(obj, tool)`: the object is pushed by the tool's end, it does not lie on top
+    of it."""
+    sc = ctx.scene
+    supports = tuple(s for s, b in sc.objects.items() if b.static and not _shapeless(sc, s)
+                     and resting_on(ctx, obj, matrix_to_se3(To), s, tol=tol).ok)
     touch = resting_on(ctx, obj, matrix_to_se3(To), tool, matrix_to_se3(Tt), tol=tol).distance
     if touch > tol:
-        return f"{obj} rides on {tool} {touch:.4f} away from it"
-    sc = ctx.scene
-    if not any(resting_on(ctx, obj, matrix_to_se3(To), s, tol=tol).ok
-               for s, b in sc.objects.items() if b.static and not _shapeless(sc, s)):
-        return f"{obj} rides on {tool} but rests on no static body"
-    return None
+        return f"{obj} rides on {tool} {touch:.4f} away from it", supports
+    if not supports:
+        return f"{obj} rides on {tool} but rests on no static body", supports
+    return None, supports
 
 
 def _shapeless(sc: Any, name: str) -> bool:

@@ -213,6 +213,21 @@ def test_work1_pushes_and_is_verified(work1_solved):
     assert r.plan[0].startswith("pick(stick, arm_s") and r.plan[1] == "push(b1, stick, arm_s)"
     rep = verify_solution(c.geometry, r)
     assert rep.ok, str(rep)
+    # the second verifier (no gnppdsl import): b1 rides on the stick and follows it along the push
+    import copy
+    import json
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from rebuilt_check import check as rebuilt_check
+    data = json.loads(json.dumps(r.to_json()))
+    rebuilt = rebuilt_check(data, WORK / "work1.pntc")
+    assert rebuilt.ok and rebuilt.keyframes == rep.keyframes, str(rebuilt)
+    # ... and finds b1 off the stick's end when its pose on the stick is moved 1 cm ahead
+    moved = copy.deepcopy(data)
+    pushed = next(st for st in moved["steps"] if "parent(b1) = stick" in st["state"])
+    pushed["values"]["pose(b1)"][1] += 0.01
+    pushed.pop("world", None)
+    assert any("b1 rides on stick 10.0 mm away" in f for f in rebuilt_check(moved, WORK / "work1.pntc").failures)
 
 
 @pytest.mark.slow
@@ -247,6 +262,11 @@ def _riding_failures(c, rel, lift=0.0):
     """The verification's placement failures of one keyframe where arm_s (at home) holds the
     stick and b1 rides on its end at `rel` (b1's pose relative to the stick), b1's world pose
     upright at the table's centre `lift` above the table."""
+    return [str(f) for f in _riding_report(c, rel, lift).issues if f.kind == "placement"]
+
+
+def _riding_report(c, rel, lift=0.0):
+    """The verification's report of that keyframe (`_riding_failures`)."""
     from types import SimpleNamespace
 
     from gnppdsl.solve.result import Step
@@ -258,8 +278,7 @@ def _riding_failures(c, rel, lift=0.0):
     stick = np.linalg.inv(_tcp("arm_s", q_s)) @ W @ np.linalg.inv(_mat(rel))
     state = "parent(b1) = stick, parent(stick) = arm_s, holding(arm_s) = stick"
     step = Step(0, None, state, values={"q(arm_s)": list(q_s), "pose(stick)": _se3(stick), "pose(b1)": list(rel)})
-    rep = verify_solution(c.geometry, SimpleNamespace(steps=[step]), check_logic=False)
-    return [str(f) for f in rep.issues if f.kind == "placement"]
+    return verify_solution(c.geometry, SimpleNamespace(steps=[step]), check_logic=False)
 
 
 def test_the_verification_checks_a_pushed_block_touches_the_stick_and_the_table(work1_factors):
@@ -269,3 +288,27 @@ def test_the_verification_checks_a_pushed_block_touches_the_stick_and_the_table(
     assert len(far) == 1 and "rides on stick 0.0060 away" in far[0]
     lifted = _riding_failures(c, [0.004, 0.425, -0.01, 0, 0, 0, 1], lift=0.01)
     assert len(lifted) == 1 and "rests on no static body" in lifted[0]
+
+
+def test_the_active_set_leaves_a_pushed_blocks_sliding_contact_with_the_table_to_the_push_rows(work1_factors):
+    """The verification names the static body a riding block rests on (`SolutionReport.riding`),
+    and the active set adds no row for that pair on the keyframe or the motion that starts there
+    (a signed distance at 0 along the push: it stalled the repair of Work_1's push at 1e-4), but
+    keeps the block's other near pairs, and the pair where the block does not ride."""
+    from types import SimpleNamespace
+
+    from gnppdsl.solve.active_set import near_pairs
+    from gnppdsl.solve.verify_solution import SolutionReport
+
+    c, _ = work1_factors
+    assert _riding_report(c, [0.004, 0.425, -0.01, 0, 0, 0, 1]).riding == {(0, "b1"): ("table",)}
+    assert _riding_report(c, [0.004, 0.425, -0.01, 0, 0, 0, 1], lift=0.01).riding == {(0, "b1"): ()}
+    riding = SimpleNamespace(state="parent(b1) = stick, parent(stick) = arm_s")
+    resting = SimpleNamespace(state="parent(b1) = table, parent(stick) = arm_s")
+    result = SimpleNamespace(steps=[riding, riding, resting])
+    near = [(0, None, "b1", "table", -1e-4), (0, 8.0, "table", "b1", -1e-4),
+            (0, 8.0, "b1", "arm_n/panda_hand", 0.002), (1, 3.0, "table", "b1", -1e-4),
+            (2, 3.0, "b1", "pad_n", 0.001)]
+    rep = SolutionReport(ok=False, near=list(near), riding={(0, "b1"): ("table",), (1, "b1"): ()})
+    assert near_pairs(result, rep) == [near[2], near[3], near[4]]
+    assert near_pairs(result, SolutionReport(ok=False, near=list(near))) == near
