@@ -201,30 +201,27 @@ class ProblemResolver:
         if not names:
             return
         called = {c.template for rule in dom.rules for c in rule.calls}
+        robots = ", ".join(sorted(n for n, r in scene.robots.items() if r.kind == "urdf"))
+        # primitive -> (its name argument, the names it accepts, what they are, the hint's last resort)
+        checked = {"link": (1, names, "link", "a link or a `links:` role",
+                            "name a role of the scene robot's `links:` or a URDF link with collision geometry"),
+                   "fk": (2, frames, "frame", "a link, joint or `links:` role",
+                          "name a role of the scene robot's `links:` or a link of its URDF")}
         seen: set[int] = set()
         for t in (dom.templates[n] for n in called if n in dom.templates):
             for node in _walk(t.body):
-                if isinstance(node, Call) and node.fn == "fk" and len(node.args) == 3 \
-                        and isinstance(node.args[2], Str) and node.args[2].value not in frames:
-                    at = node.args[2].span or node.span or t.span
-                    robots = ", ".join(sorted(n for n, r in scene.robots.items() if r.kind == "urdf"))
-                    self.err(at, f"frame '{node.args[2].value}' (template {t.name}): no robot of scene "
-                             f"{Path(scene.path).name} ({robots}) has a link, joint or `links:` role of "
-                             "that name", "unknown-link",
-                             did_you_mean(node.args[2].value, sorted(frames))
-                             or "name a role of the scene robot's `links:` or a link of its URDF")
-                if isinstance(node, Call) and node.fn == "link" and len(node.args) == 2 \
-                        and isinstance(node.args[1], Str) and node.args[1].value not in names:
-                    at = node.args[1].span or node.span or t.span
-                    if id(node) in seen:
-                        continue
-                    seen.add(id(node))
-                    robots = ", ".join(sorted(n for n, r in scene.robots.items() if r.kind == "urdf"))
-                    self.err(at, f"link '{node.args[1].value}' (template {t.name}): no robot of scene "
-                             f"{Path(scene.path).name} ({robots}) has a link or a `links:` role of "
-                             "that name", "unknown-link",
-                             did_you_mean(node.args[1].value, sorted(names))
-                             or "name a role of the scene robot's `links:` or a URDF link with collision geometry")
+                if not isinstance(node, Call) or node.fn not in checked or id(node) in seen:
+                    continue
+                arg, known, what, has, fallback = checked[node.fn]
+                if len(node.args) != arg + 1 or not isinstance(node.args[arg], Str) \
+                        or node.args[arg].value in known:
+                    continue
+                seen.add(id(node))
+                name = node.args[arg].value
+                self.err(node.args[arg].span or node.span or t.span,
+                         f"{what} '{name}' (template {t.name}): no robot of scene {Path(scene.path).name} "
+                         f"({robots}) has {has} of that name", "unknown-link",
+                         did_you_mean(name, sorted(known)) or fallback)
 
     def check_scene_objects(self, dom: M.Domain, objects: dict[str, str], scene, span) -> None:
         """Objects with a geometric role must be in the scene: robots of `joints(r)` variables

@@ -18,6 +18,7 @@ from gnppdsl.solve.check_memory import CheckMemory
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.interpolation import keyframe_of, straight_line
 from gnppdsl.solve.options import overridden
+from gnppdsl.solve.plan_graph import bound_violation
 
 if TYPE_CHECKING:  # pragma: no cover  (casadi)
     from gnppdsl.nlp.feasibility import FeasibilityResult
@@ -241,24 +242,35 @@ class TrajectoryPhase(CheckMemory):
                            suffix="{moving}")
         elif idle:
             return None
+        margins = None
         if all(v in start for v in m.variables):
             point = {v: start[v] for v in m.variables}
-            worst = run.violation(m.factor_instances, point, m.variables)
+            # per factor (signed), also what `screened_motion` selects the near collisions by
+            margins = self._margins(m.factor_instances, point)
+            worst = np.inf if margins is None else \
+                max(max(margins, default=0.0), 0.0, bound_violation(m.variables, point))
             if worst <= run.options.tolerance:
                 run.stats.reused_solutions += 1
                 return FeasibilityResult(True, {**point, **idle}, {r: 0.0 for r in m.factor_refs}, worst,
                                          0.0, 0.0, 0, "its start satisfies it", 0)
-        # a solver of its own: assembled NLPs are cached by vertex set, which ignores bounds
-        solver = run.new_solver()
-        solver.options.restarts, solver.options.polish = 0, True
-        solver.options.max_iter = min(solver.options.max_iter, MOTION_MAX_ITER)
-        solver.options.iteration_budget = MOTION_MAX_ITER      # for all its runs together
-        solver.options.time_limit = max(0.05, run.remaining())
-        r = solver.solve(GraphNLPView.with_variables(m, {v: f for v, f in fixed.items() if v in m}),
-                         warm_start=start, seed=run.options.seed)
-        run.nlp_calls += 1
-        if time.perf_counter() >= run.deadline:
-            raise TimeUp()
+        def solve(sub: GraphNLP, at: dict) -> FeasibilityResult:
+            # a solver of its own: assembled NLPs are cached by vertex set, which ignores bounds
+            solver = run.new_solver()
+            solver.options.restarts, solver.options.polish = 0, True
+            solver.options.max_iter = min(solver.options.max_iter, MOTION_MAX_ITER)
+            solver.options.iteration_budget = MOTION_MAX_ITER      # for all its runs together
+            solver.options.time_limit = max(0.05, run.remaining())
+            r = solver.solve(GraphNLPView.with_variables(sub, {v: f for v, f in fixed.items() if v in sub}),
+                             warm_start=at, seed=run.options.seed)
+            run.nlp_calls += 1
+            if time.perf_counter() >= run.deadline:
+                raise TimeUp()
+            return r
+
+        # many collision factors (one per resting block): first with the near ones (`screening`)
+        r = self.screened_motion(m, start, solve, margins)
+        if r is None:
+            r = solve(m, start)
         if r.feasible:
             r.values.update({v: x for v, x in idle.items() if v not in r.values})
         return r

@@ -70,6 +70,9 @@ class Run(ReachabilityCosts):
             self.kernel_base = (self.kernels.compiled, self.kernels.compile_time, self.kernels.failed,
                                 self.kernels.queued)
         self.solvers: list[FeasibilitySolver] = []      # every FeasibilitySolver of this run (ipopt runs, time)
+        self.held: dict[int, tuple] = {}  # id(factor) -> (factor, {values key: violation}): `violation`
+        self.screen_curved = False        # a screened NLP failed linearised and was solved with the
+                                          # distances' curvature: later ones start with it (`screening`)
         self.nlp_calls = 0                # NLPs solved through FeasibilityCheck.solve
         self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
         self.db: SubgraphDatabase | None = None
@@ -336,17 +339,50 @@ class Run(ReachabilityCosts):
                   variables: Iterable[VarInstance] = ()) -> float:
         """Largest violation of `factors` (and of the bounds of `variables`) at `point` by the
         independent numpy evaluator; inf when a primitive cannot be evaluated there (the
-        caller then solves instead). Counted in `stats.reuse_time`."""
+        caller then solves instead). Counted in `stats.reuse_time`.
+
+        A factor found to hold is remembered with the values of its variables (`remember_held`)
+        and not evaluated again at the same values; what is returned for it is the largest
+        violation of the call that found it (at most the tolerance). Why: the same factors are
+        re-checked at the same values many times -- a keyframe's own factors by both phases
+        next to it, every motion by its screened NLP's check and again by the whole graph's
+        (`known_solution`); on stack_16 the numpy checks cost more than the motions' NLPs."""
         from gnppdsl.nlp.evaluate import max_violation
 
         t0 = time.perf_counter()
         try:
-            worst = max_violation(factors, point, self.compiled.geometry)[0] if factors else 0.0
+            todo, known = [], 0.0
+            for f in factors:
+                w = self._held_at(f, point)
+                if w is None:
+                    todo.append(f)
+                else:
+                    known = max(known, w)
+            worst = max_violation(todo, point, self.compiled.geometry)[0] if todo else 0.0
         except Exception:
             return np.inf
         finally:
             self.stats.reuse_time += time.perf_counter() - t0
-        return max(worst, bound_violation(variables, point))
+        if worst <= self.options.tolerance:
+            self.remember_held(todo, point, worst)
+        return max(worst, known, bound_violation(variables, point))
+
+    def _held_at(self, f: FactorInstance, point: dict) -> float | None:
+        entry = self.held.get(id(f))
+        return None if entry is None else entry[1].get(_values_key(f, point))
+
+    def remember_held(self, factors: Iterable[FactorInstance], point: dict, worst: float) -> None:
+        """The factors hold at `point` within `worst` (<= the tolerance), checked with numpy
+        by the caller: `violation` takes that for the same values of their variables. (Keyed
+        by the factor object, which the entry keeps alive, and the bytes of its variables'
+        values: an equal check, not a nearby one.)"""
+        if not worst <= self.options.tolerance:
+            return
+        for f in factors:
+            entry = self.held.get(id(f))
+            if entry is None:
+                entry = self.held[id(f)] = (f, {})
+            entry[1][_values_key(f, point)] = worst
 
     def solution(self, plan: Plan, graph: GraphNLP, values: dict[VarInstance, np.ndarray]) -> Result:
         from gnppdsl.nlp.evaluate import EvaluationError, max_violation
@@ -427,3 +463,8 @@ def _children_cpu() -> float:
 
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     return ru.ru_utime + ru.ru_stime
+
+
+def _values_key(f: FactorInstance, point: dict) -> tuple:
+    """The values of f's variables at `point`, as bytes (`Run.remember_held`)."""
+    return tuple(np.asarray(point[u], float).tobytes() for u in f.variables)

@@ -21,6 +21,7 @@ the screened graph is a relaxation of it, but its one failed start proves nothin
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from gnppdsl.nlp.graph import GraphNLP
@@ -59,6 +60,15 @@ keyframes led to more active-set pairs and 264 s CPU against 103). stack_32's ha
 without a verdict (21354 factors); screened, 1308 of them are near at the relaxation's point."""
 
 
+MOTION_SCREEN_MIN = 16
+"""Collision factors of one phase's motion NLP between fixed keyframes (`solve_motion`) from
+which it is screened too (each factor is a whole motion's rows against one body: `path_clear`
+is 6 distance rows at each of 18 waypoints). stack_16's motions have 18-36 (a `path_clear`
+per resting block and the table, a `carry_clear` per block when carrying), of which the
+interpolated start comes within SCREEN_DISTANCE of 2-6; a problem with a few objects has fewer
+than this and is not screened."""
+
+
 class CollisionScreen(CheckMemory):
     """`screened`: the feasibility check's collision screening (see the module docstring).
 
@@ -91,24 +101,72 @@ class CollisionScreen(CheckMemory):
         every factor of g with numpy; None when screening does not apply or does not succeed
         (no verdict: the caller solves g whole). One start per NLP (no restarts), warm-started
         from `warm` (completed by the initial guess) and then from each round's solution."""
-        from gnppdsl.nlp.feasibility import FeasibilityResult
-
         run = self.run
         if not (self.screen and run.options.screen_collisions):
             return None
-        refs = g.factor_refs
-        collision = [r for r in refs if "collision" in g.factor(r).tags]
-        is_collision = set(collision)
+        collision = [r for r in g.factor_refs if "collision" in g.factor(r).tags]
         if len(collision) < SCREEN_MIN_FACTORS:
             return None
         guess = g.initial_guess or {}
         point = {v: warm[v] if v in warm else guess.get(v) for v in g.variables}
         if any(x is None for x in point.values()):
             return None
+
+        def solve(sub: GraphNLP, at: dict) -> FeasibilityResult:
+            if self.solver.options.distance_curvature:
+                return self.screened_solve(sub, at)
+            # linearised distance rows first, the exact Hessian second (`screened_solve`); once
+            # the exact one has rescued a screened NLP of this solve, the other way round
+            first = run.screen_curved
+            r = self.screened_solve(sub, at, distance_curvature=first)
+            if not r.feasible:
+                run.stats.screened_solves += 1
+                second = self.screened_solve(sub, at, distance_curvature=not first)
+                run.screen_curved |= second.feasible and not first
+                r = replace(second, iterations=r.iterations + second.iterations,
+                            starts=r.starts + second.starts)
+            return r
+
+        return self.screen_rounds(g, point, collision, solve)
+
+    def screened_motion(self, m: GraphNLP, start: dict, solve, margins: list | None = None
+                        ) -> FeasibilityResult | None:
+        """`screen_rounds` for one phase's motion NLP m between fixed keyframes
+        (`TrajectoryPhase.solve_motion`; `solve(sub, start)` runs the caller's solver with the
+        keyframes held) when it has MOTION_SCREEN_MIN collision factors or more; None when it
+        does not apply or does not succeed (the caller solves m whole). `margins`: the factors'
+        margins at the start when the caller has them (its check of the start).
+
+        Why: each motion carries a `path_clear` of its arm against every resting block, and
+        an ipopt iteration evaluates all of them (stack_32: a moving arm took 65-70 ipopt
+        iterations over ~3500 distance rows), where the interpolated start passes within
+        SCREEN_DISTANCE of a handful of blocks (stack_16: 4-16 iterations screened). A motion is never a
+        verdict, and its answer is accepted only after numpy checks every factor of m."""
+        if not self.run.options.screen_collisions:
+            return None
+        collision = [r for r in m.factor_refs if "collision" in m.factor(r).tags]
+        if len(collision) < MOTION_SCREEN_MIN or any(v not in start for v in m.variables):
+            return None
+        return self.screen_rounds(m, {v: start[v] for v in m.variables}, collision, solve, margins)
+
+    def screen_rounds(self, g: GraphNLP, point: dict, collision: list, solve,
+                      margins: list | None = None) -> FeasibilityResult | None:
+        """The rounds of `screened` on g from `point` (a value for every variable of g), given
+        its collision factors: `solve(sub, start)` solves a subgraph of g with the collision
+        factors near so far (one NLP, or a second try); a result is returned only when numpy
+        finds every factor and bound of g holds at its point. None: screening leaves out too
+        little, a screened NLP failed, or the rounds ran out (no verdict)."""
+        from gnppdsl.nlp.feasibility import FeasibilityResult
+
+        run = self.run
+        refs = g.factor_refs
+        is_collision = set(collision)
         t0 = time.perf_counter()
         tol = run.options.tolerance
+        point = dict(point)
         instances = [g.factor(r) for r in refs]
-        margins = self._margins(instances, point)
+        if margins is None:       # else given by the caller, at this point, in the order of refs
+            margins = self._margins(instances, point)
         if margins is None:
             return None
         near = {r for r, m in zip(refs, margins) if r in is_collision and m > -SCREEN_DISTANCE}
@@ -119,15 +177,10 @@ class CollisionScreen(CheckMemory):
         for round_ in range(SCREEN_ROUNDS):
             sub = g.subgraph(variables=g.variables, factors=[*others, *sorted(near)],
                              suffix=f"{{screened {len(near)}/{len(collision)}}}")
-            r = self.screened_solve(sub, point)
+            r = solve(sub, point)
             iters += r.iterations
             starts += r.starts
             run.stats.screened_solves += 1
-            if not r.feasible and not self.solver.options.distance_curvature:
-                r = self.screened_solve(sub, point, distance_curvature=True)
-                iters += r.iterations
-                starts += r.starts
-                run.stats.screened_solves += 1
             run.stats.screened_dropped += len(collision) - len(near)
             if not r.feasible:
                 run.say(f"  {g.name}: screened NLP ({len(near)} of {len(collision)} collision factors) "
@@ -140,6 +193,7 @@ class CollisionScreen(CheckMemory):
             worst = max(max(margins, default=0.0), 0.0)
             worst = max(worst, bound_violation(g.variables, point))
             if worst <= tol:
+                run.remember_held(instances, point, worst)     # checked here: `Run.violation`
                 run.stats.reused_solutions += 1
                 return FeasibilityResult(True, dict(point), {ref: 0.0 for ref in refs}, worst, 0.0,
                                          time.perf_counter() - t0, iters,
@@ -177,7 +231,13 @@ class CollisionScreen(CheckMemory):
         37.7 s CPU, violation 0.0365 unchanged; its slice of steps 11-14 alone: 180 iterations,
         28.5 s), with the exact Hessian the slice is solved in 18 iterations (6.4 s). A failed
         screened NLP is no verdict either way; a second run costs one more NLP of the screened
-        size where the alternative is the whole graph."""
+        size where the alternative is the whole graph.
+
+        Once such a second try has succeeded in a solve (`Run.screen_curved`), its later
+        screened NLPs are run with the exact Hessian first and linearised second: stack_32's
+        screened keyframes spent 12 s CPU on a linearised run that failed before the exact one
+        solved them, on each graph of that size. Either order tries the same two runs from the
+        same point; neither failure is a verdict."""
         run = self.run
         solver = self.solver
         if distance_curvature:
@@ -195,4 +255,4 @@ class CollisionScreen(CheckMemory):
         return r
 
 
-__all__ = ["CollisionScreen", "SCREEN_DISTANCE", "SCREEN_KEYFRAMES_MIN", "SCREEN_MIN_FACTORS"]
+__all__ = ["CollisionScreen", "MOTION_SCREEN_MIN", "SCREEN_DISTANCE", "SCREEN_KEYFRAMES_MIN", "SCREEN_MIN_FACTORS"]

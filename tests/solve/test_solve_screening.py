@@ -165,9 +165,9 @@ def test_a_screened_nlp_that_fails_linearised_is_tried_once_with_the_distances_c
     def linearised_fails(self, sub, point, distance_curvature=False):
         r = real(self, sub, point, distance_curvature=distance_curvature)
         solver = self._curved_solver if distance_curvature else self.solver
-        calls.append((sub.name, distance_curvature, solver.options.distance_curvature, dict(point)))
         if not distance_curvature:
-            return replace(r, feasible=False, max_violation=max(r.max_violation, 1.0))
+            r = replace(r, feasible=False, max_violation=max(r.max_violation, 1.0))
+        calls.append((sub.name, distance_curvature, solver.options.distance_curvature, dict(point), r.feasible))
         return r
 
     monkeypatch.setattr(FeasibilityCheck, "screened_solve", linearised_fails)
@@ -176,12 +176,20 @@ def test_a_screened_nlp_that_fails_linearised_is_tried_once_with_the_distances_c
     tries = [c for c in calls if c[1]]
     assert tries, "no second try with the distances' curvature"
     assert all(c[2] for c in tries) and all(not c[2] for c in calls if not c[1])
-    # each second try starts where the failed first one started
-    for i, c in enumerate(calls):
-        if c[1]:
-            first = calls[i - 1]
-            assert not first[1] and first[0] == c[0]
-            assert all(np.array_equal(np.asarray(first[3][v]), np.asarray(c[3][v])) for v in c[3])
+    # the first try with the curvature is a second try: it starts where the failed linearised
+    # one started. After it succeeded (`Run.screen_curved`) the screened NLPs start with the
+    # curvature, and a linearised run is only the second try of one that failed with it.
+    rescue = next(i for i, c in enumerate(calls) if c[1])
+    assert rescue > 0
+
+    def second_try(i):
+        first = calls[i - 1]
+        assert first[1] != calls[i][1] and first[0] == calls[i][0] and not first[4]
+        assert all(np.array_equal(np.asarray(first[3][v]), np.asarray(calls[i][3][v])) for v in calls[i][3])
+
+    second_try(rescue)
+    assert calls[rescue][4] and len(calls) > rescue + 1
+    assert all(calls[i][1] or second_try(i) is None for i in range(rescue + 1, len(calls)))
     assert answers
     for _, g, r in answers:
         point = {v: r.values[v] for v in g.variables}
@@ -214,3 +222,54 @@ def test_a_plans_own_keyframes_are_screened_only_when_huge(monkeypatch):
     solved()
     own = [g for g, _ in seen if g.name.startswith("G[modes]{screened")]
     assert own
+
+
+def test_numpy_checks_skip_factors_that_held_at_the_same_values(monkeypatch):
+    """`Run.violation` does not evaluate again a factor it found holding at the same values of
+    its variables (it answers from `Run.held`), evaluates it again at other values, and never
+    remembers a call that found a violation. The solve still ends with a checked solution."""
+    from gnppdsl.nlp import evaluate
+    from gnppdsl.solve.run import Run, _values_key
+
+    evaluated = []                 # (id(f), values key, call holds) of every factor evaluated
+    runs = []
+    real_max = evaluate.max_violation
+
+    inside = []                    # only the evaluations `Run.violation` makes
+
+    def spy_max(factors, values, geometry=None):
+        factors = list(factors)
+        out = real_max(factors, values, geometry)
+        if inside:
+            evaluated.extend((id(f), _values_key(f, values), out[0] <= 1e-6) for f in factors)
+        return out
+
+    real_violation = Run.violation
+
+    def spy_violation(self, factors, point, variables=()):
+        runs.append(self)
+        inside.append(1)
+        try:
+            return real_violation(self, factors, point, variables)
+        finally:
+            inside.pop()
+
+    monkeypatch.setattr(evaluate, "max_violation", spy_max)
+    monkeypatch.setattr(Run, "violation", spy_violation)
+    _solved()
+    run = runs[-1]
+    assert run.held, "nothing remembered"
+    held_once = set()
+    for fid, key, holds in evaluated:
+        assert (fid, key) not in held_once, "a factor that held was evaluated again at the same values"
+        if holds:
+            held_once.add((fid, key))
+    # at other values the factor is evaluated again; a violated call is not remembered
+    f, keys = next(iter(run.held.values()))
+    point = {u: np.asarray(next(iter(keys)) and 0.0) + 1e3 for u in f.variables}
+    n = len(evaluated)
+    first = run.violation([f], point)
+    assert len(evaluated) == n + 1
+    if first > 1e-6:
+        run.violation([f], point)
+        assert len(evaluated) == n + 2
