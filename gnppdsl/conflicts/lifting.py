@@ -70,6 +70,8 @@ class Lifter:
     limit: int = 64                          # renamings checked per conflict
     stats: LiftStats = field(default_factory=LiftStats)
     renamable: dict = field(default_factory=dict)   # last `instances` call: object -> objects it was lifted onto
+    images: dict = field(default_factory=dict)      # last `instances` call: instance -> its factors π(M)
+                                                    # (steps from the conflict's first; the original: M)
 
     def __post_init__(self) -> None:
         self._index = {v.name: i for i, v in enumerate(self.task.variables)}
@@ -88,6 +90,7 @@ class Lifter:
         shifted = [_shift(f, -first) for f in factors]
         pattern = anonymous_graph(shifted, self.object_key)
         objs = self._conflict_objects(factors, original)
+        self.images = {original: tuple(shifted)}
         choices = {o: [c for c in self.object_types if c != o and self.object_types[c] == self.object_types[o]
                        and self.object_key(c) == self.object_key(o) != "-"] for o in objs}
         valid: dict[str, list[str]] = {o: [] for o in objs}
@@ -102,6 +105,7 @@ class Lifter:
                     valid[o].append(c)
                     if inst not in out:
                         out.append(inst)
+                        self.images[inst] = self._image
         self.renamable = {o: list(v) for o, v in valid.items()}
         movable = [o for o in objs if valid[o]]
         if len(movable) >= 2:                            # then their combinations
@@ -115,6 +119,7 @@ class Lifter:
                 inst = self._check(mapping, window, shifted, pattern)
                 if inst is not None and inst not in out:
                     out.append(inst)
+                    self.images[inst] = self._image
         self.stats.candidates += checked
         self.stats.instances += len(out) - 1
         return out
@@ -195,6 +200,7 @@ class Lifter:
             derived = [derive(self.factory.task, st) for st in renamed]     # once, not per state
             if not all(p.holds_in(derived[start + l]) for l, p in enumerate(seq)):
                 return None                              # cannot happen: generators hold where made
+            self._image = tuple(image)
             return seq
         return None
 

@@ -50,6 +50,8 @@ class Conflict:
     named: tuple = ()                # the partial states by name: ((("parent(b1)", "s1"), ...), ...)
     instances: tuple = ()            # lifted: the further symmetric instances (DSL text each)
     batched: tuple = ()              # batch-learned: renamed instances an NLP found infeasible (DSL text each)
+    interleaved: tuple = ()          # the instances above with steps inserted or removed where M allows
+                                     # it (DSL text each; `gnppdsl.conflicts.interleave`)
     # not serialised: the infeasible subgraph's factor instances (tests re-solve them)
     subgraph: tuple = field(default=(), repr=False, compare=False)
 
@@ -66,6 +68,7 @@ class Conflict:
             "at_step": self.at_step,
             "instances": list(self.instances),
             "batched": list(self.batched),
+            "interleaved": list(self.interleaved),
         }
 
 
@@ -112,6 +115,7 @@ class Stats:
     plans: int = 0                    # candidate logic plans evaluated
     conflicts: int = 0                # conflicts learned (a lifted conflict once)
     conflict_instances: int = 0       # ground instances they forbid (>= conflicts)
+    interleaved_instances: int = 0    # ... of which interleaved (`conflicts.interleave`: steps inserted or removed)
     lift_time: float = 0.0            # seconds finding symmetric instances (`conflicts.lifting`)
     batch_candidates: int = 0         # renamed conflicts decided by an NLP (`conflicts.batch`)
     batch_learned: int = 0            # ... found infeasible, learned with their conflict

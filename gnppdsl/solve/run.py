@@ -198,8 +198,10 @@ class Run(ReachabilityCosts):
             raise AssertionError(f"conflict {seq} does not hold in the plan it came from at step {first}")
         t0, c0 = time.perf_counter(), _cpu()
         instances = [seq]
+        self.images = {seq: tuple(sub_factors)}
         if self.lifter is not None:
             instances = self.lifter.instances(plan.states, sub_factors)
+            self.images.update(self.lifter.images)
             self.stats.lift_time += time.perf_counter() - t0
         batched: list = []
         if self.batcher is not None and self.graph_factors >= self.options.batch_min_factors:
@@ -208,8 +210,9 @@ class Run(ReachabilityCosts):
             batched = self.batch(plan, sub_factors, instances)
             t0, c0 = t0 + time.perf_counter() - t1, c0 + _cpu() - c1
         stretched = self.stretched(sub_factors, seq, instances + batched)
+        interleaved = self.interleaved(instances + batched + stretched)
         known = seq in set(self.planner.conflicts)
-        new = self.planner.add_lifted(instances + batched + stretched)
+        new = self.planner.add_lifted(instances + batched + stretched + interleaved)
         if known or not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
@@ -219,13 +222,16 @@ class Run(ReachabilityCosts):
         c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in sub_factors), source,
                      relaxation, self.stats.plans, first, named=names_of(self.task, seq),
                      instances=others, subgraph=tuple(sub_factors),
-                     batched=tuple(conflict_str(self.task, s) for s in batched))
+                     batched=tuple(conflict_str(self.task, s) for s in batched),
+                     interleaved=tuple(conflict_str(self.task, s) for s in interleaved))
         self.conflicts.append(c)
         self.stats.conflicts += 1
         self.stats.conflict_instances += new
+        self.stats.interleaved_instances += len(interleaved)
         lifted = f" (+{len(others)} symmetric instances)" if others else ""
         lifted += f" (+{len(batched)} batch-learned)" if batched else ""
         lifted += f" (+{len(stretched)} stretched)" if stretched else ""
+        lifted += f" (+{len(interleaved)} interleaved)" if interleaved else ""
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
 
     def stretched(self, sub_factors: Sequence[FactorInstance], seq, instances: Sequence) -> list:
@@ -240,6 +246,26 @@ class Run(ReachabilityCosts):
         out: list = []
         for inst in instances if runs else ():
             out += [s for s in stretched(inst, runs, self.options.max_horizon + 1) if s not in out]
+        return out
+
+    def interleaved(self, seqs: Sequence) -> list:
+        """The interleaved instances (`gnppdsl.conflicts.interleave`) of the conflicts `seqs` whose
+        factors are known (`self.images`), up to the planner's horizon; none already in `seqs`
+        or forbidden by the planner."""
+        if not self.options.interleave_conflicts:
+            return []
+        from gnppdsl.conflicts.interleave import stretched
+
+        have = set(seqs) | set(self.planner.conflicts)
+        out = []
+        for s in seqs:
+            factors = self.images.get(s)
+            if factors is None:
+                continue
+            for inst in stretched(factors, self.options.max_horizon + 1)[1:]:
+                if inst not in have:
+                    have.add(inst)
+                    out.append(inst)
         return out
 
     def batch(self, plan: Plan, sub_factors: Sequence[FactorInstance], instances: Sequence) -> list:
@@ -279,8 +305,11 @@ class Run(ReachabilityCosts):
                 if not feasible:
                     # with its symmetric instances (`Lifter`: the same NLP, no solve)
                     found = [cand.conflict]
+                    self.images.setdefault(cand.conflict, cand.factors)
                     if self.lifter is not None:
                         found = self.lifter.instances(cand.states, cand.factors)
+                        for k, v in self.lifter.images.items():
+                            self.images.setdefault(k, v)
                     for seq in found:
                         if not subsumed(seq, known):
                             out.append(seq)

@@ -127,9 +127,9 @@ def test_batch_learned_conflicts_never_forbid_a_feasible_plan(tmp_path):
     short = gnppdsl.load_and_compile(str(uneven_family(short, "parent(b1) = t1")))
     p6 = gnppdsl.load_and_compile(str(PLANAR / "p6_clutter.pntc"))
     for learned_on, checked_on, least in ((full, short, 5), (p6, p6, 30)):
-        result = solve(learned_on)
+        result = solve(learned_on, interleave_conflicts=True)
         assert result.status == "solved" and verify(learned_on, result).ok
-        texts = [t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched)]
+        texts = [t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched, *c.interleaved)]
         if learned_on is full:
             assert any(c.batched for c in result.conflicts)      # something to check
         seqs = parse_conflicts("\n".join(texts), checked_on.task)

@@ -78,13 +78,13 @@ def solve(compiled, **kw):
 def instances(compiled, result):
     """Every ground instance the solve forbade (batch-learned ones too), read back from the
     result's texts."""
-    text = "\n".join(t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched))
+    text = "\n".join(t for c in result.conflicts if c.source != "plan" for t in (c.text, *c.instances, *c.batched, *c.interleaved))
     return parse_conflicts(text, compiled.task)
 
 
 def test_lifted_and_minimised_conflicts_never_forbid_a_feasible_plan():
     compiled = gnppdsl.load_and_compile(str(PLANAR / "p6_clutter.pntc"))
-    result = solve(compiled, lift_conflicts=True, minimise_conflicts=True)
+    result = solve(compiled, lift_conflicts=True, minimise_conflicts=True, interleave_conflicts=True)
     assert result.status == "solved" and verify(compiled, result).ok
     forbidden = instances(compiled, result)
     assert len(forbidden) > result.stats.conflicts          # something was lifted
