@@ -49,8 +49,32 @@ def _nx() -> Any:
 _BODY_HASHES: dict[Any, str] = {}
 
 
+_BY_ID: dict[tuple[str, int], tuple[Any, Any]] = {}
+
+
+def _by_id(kind: str, body: Any, compute: Callable[[Any], Any]) -> Any:
+    """`compute(body)` remembered by the identity of `body` (the entry holds the body, so its
+    id is not reused while the entry lives). Why not only a dict keyed by the body: a resolved
+    body is a tree of frozen dataclasses whose hash is recomputed, node by node in Python, at
+    every lookup (lab5_paper profile: 25 M hash calls, ~1/10 of the solve, from the semantic
+    graphs of the database's lookups, which label the same factor instances again and again)."""
+    key = (kind, id(body))
+    hit = _BY_ID.get(key)
+    if hit is not None and hit[0] is body:
+        return hit[1]
+    value = compute(body)
+    if len(_BY_ID) > 400_000:
+        _BY_ID.clear()
+    _BY_ID[key] = (body, value)
+    return value
+
+
 def body_hash(body: tuple) -> str:
     """A stable hash of a resolved factor body (spans excluded: they are repr=False)."""
+    return _by_id("hash", body, _body_hash)
+
+
+def _body_hash(body: tuple) -> str:
     h = _BODY_HASHES.get(body)
     if h is None:
         h = hashlib.sha256(repr(body).encode()).hexdigest()[:20]
@@ -71,6 +95,10 @@ ObjectKey = Callable[[str], str]
 
 def body_objects(body: Any) -> frozenset[str]:
     """Names of the objects a resolved body refers to (`Obj` nodes: sdist bodies, fk robots)."""
+    return _by_id("objects", body, _body_objects)
+
+
+def _body_objects(body: Any) -> frozenset[str]:
     found = _BODY_OBJECTS.get(body)
     if found is None:
         names: set[str] = set()

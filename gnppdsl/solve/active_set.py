@@ -124,33 +124,77 @@ def _known(factors) -> set:
             continue
         if "collision" not in f.tags:
             continue
-        for c in f.body:
-            for d in distances(c.lhs):
-                a, b = body_name(d.args[0]), body_name(d.args[2])
-                if a is None or b is None:
-                    continue
-                ks = waypoints(d.args[1], set()) | waypoints(d.args[3], set())
-                w = f"{ks.pop():g}" if len(ks) == 1 else None
-                known.add((f.step, w, frozenset((a, b))))
+        hit = _BODY_PAIRS.get(id(f.body))
+        if hit is None or hit[0] is not f.body:
+            pairs = []
+            for c in f.body:
+                for d in distances(c.lhs):
+                    a, b = body_name(d.args[0]), body_name(d.args[2])
+                    if a is None or b is None:
+                        continue
+                    ks = waypoints(d.args[1], set()) | waypoints(d.args[3], set())
+                    pairs.append((f"{ks.pop():g}" if len(ks) == 1 else None, frozenset((a, b))))
+            if len(_BODY_PAIRS) > 100_000:
+                _BODY_PAIRS.clear()
+            hit = _BODY_PAIRS[id(f.body)] = (f.body, pairs)
+        known.update((f.step, w, pair) for w, pair in hit[1])
     return known
+
+
+_BODY_PAIRS: dict[int, tuple] = {}
+"""`_known`'s (waypoint, pair) list of a factor body, by the body's identity (the entry holds
+the body, so the id is not reused while it lives): each round and each plan's graph share the
+bodies, and walking them again cost 4 s a call on lab5_paper (3229 factors, a profile)."""
 
 
 def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: Any,
                  settings: ActiveSet) -> list:
     """The factors (`gnppdsl.compile.pair_factors`, at the domain's margin) of the near pairs of
-    `result` (its verification `report`) that `graph` does not hold yet."""
+    `result` (its verification `report`) that `graph` does not hold yet.
+
+    A pair near at a waypoint (or midpoint) of the motion s_step -> s_step+1 whose factor
+    reads no trajectory (neither body moves with a robot in that phase: two resting objects,
+    a resting object and the scene) is the same constraint at every waypoint and at the
+    keyframe s_step (`static_pair`), so it is added once, as the keyframe's factor. Why:
+    lab5_paper's first round found 1997 near pairs, ~1700 of them resting blocks against the
+    table under their pads and against the obstacles beside them, listed at each of the
+    motion's 19 waypoints and 20 midpoints; they became 1278 pair factors, most of them
+    copies of one row, which the repair's NLPs carried through every iteration."""
+    from gnppdsl.compile.pair_factors import derived_states
+
     plan = result.extras["plan"]
     known = _known(graph.factor_instances)
+    derived = derived_states(compiled.factory, plan.states)
+    static: dict[tuple, bool] = {}          # (step, pair): its factor reads no trajectory
     new = []
+
+    def build(step: int, a: str, b: str, wp: float | None):
+        return pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp,
+                           derived=derived)
+
     for step, wp, a, b, d in near_pairs(result, report):
-        key = (step, None if wp is None else f"{wp:g}", frozenset((a, b)))
+        pair = frozenset((a, b))
+        if wp is not None and static.get((step, pair)) is None:
+            f = build(step, a, b, wp)
+            static[(step, pair)] = f is not None and static_pair(f)
+        if wp is not None and static[(step, pair)]:
+            wp = None                       # the keyframe's factor is the same row
+        key = (step, None if wp is None else f"{wp:g}", pair)
         if key in known:
             continue
         if wp is not None and not float(wp).is_integer() and d >= settings.margin - 1e-4 and \
-                any((step, f"{k:g}", key[2]) in known for k in (wp - 0.5, wp + 0.5)):
+                any((step, f"{k:g}", pair) in known for k in (wp - 0.5, wp + 0.5)):
             continue    # near, not violated, between waypoints whose rows already hold the pair
         known.add(key)
-        f = pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp)
+        f = build(step, a, b, wp)
         if f is not None:
             new.append(f)
     return new
+
+
+def static_pair(f: Any) -> bool:
+    """Does a pair factor built at a waypoint read no trajectory variable (so its row is the
+    same at every waypoint of the motion and at its first keyframe)?"""
+    from gnppdsl.solve.plan_graph import is_trajectory
+
+    return not any(is_trajectory(v) for v in f.variables)

@@ -259,3 +259,30 @@ def test_a_failed_repair_hands_its_keyframes_to_algorithm_1(wall, monkeypatch):
     expected = {v: x for v, x in repaired[0].items() if v in variables}
     assert expected and set(start) == set(expected)          # no trajectory handed on
     assert all(np.array_equal(np.asarray(start[v]), np.asarray(x)) for v, x in expected.items())
+
+
+def test_a_resting_pair_near_along_a_motion_is_the_keyframe_row_and_a_moving_one_is_per_waypoint(lab1):
+    """Two resting blocks near each other along the first motion (the left arm reaches for
+    b2): their pair factor reads no trajectory, is the same row at every waypoint and at
+    keyframe 0, so the active set adds it once as the keyframe's (here the domain's `apart`
+    rule already holds that pair at keyframe 0: nothing is added). An arm link near b1 along
+    the same motion moves with the waypoints: one factor per waypoint, as before."""
+    from gnppdsl.compile.pair_factors import pair_factor
+    from gnppdsl.solve.active_set import active_set_of, pair_factors, static_pair
+    from gnppdsl.solve.verify_solution import SolutionReport
+
+    c, r = lab1
+    settings = active_set_of(c.problem)
+    states = r.extras["plan"].states
+    at_wp = pair_factor(c.factory, states, 0, "b1", "b2", settings.margin, 7)
+    at_kf = pair_factor(c.factory, states, 0, "b1", "b2", settings.margin)
+    assert static_pair(at_wp)
+    assert at_wp.variables == at_kf.variables and at_wp.body == at_kf.body
+    link = pair_factor(c.factory, states, 0, ("left_arm", "panda_link3"), "b1", settings.margin, 7)
+    assert not static_pair(link)
+    near = [(0, w, "b1", "b2", 0.001) for w in (1, 1.5, 2, 7, 12.5)] + \
+           [(0, w, "left_arm/panda_link3", "b1", 0.001) for w in (2, 3)]
+    new = pair_factors(c, r, SolutionReport(ok=True, near=near), r.extras["graph"], settings)
+    assert not [f for f in new if {dict(f.bindings)["a"], dict(f.bindings)["b"]} == {"b1", "b2"}]
+    moving = sorted(dict(f.bindings)["w"] for f in new)
+    assert moving == ["2", "3"], [f.label for f in new]
