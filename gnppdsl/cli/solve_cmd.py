@@ -69,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "or removed where its infeasible subgraph only passes values on (a parked "
                              "base, an object staying put), so one geometric failure is not learned "
                              "again per interleaving of other actions. Default: the problem's solver "
-                             "setting `interleave_conflicts`, else off")
+                             "setting `interleave_conflicts`, else on")
     parser.add_argument("--stretch-conflicts", action=argparse.BooleanOptionalAction, default=None,
                         help="gnpp/rlgp: a conflict whose partial states repeat also forbids the repeats "
                              "held for any number of steps. Default: the problem's solver setting "

@@ -86,13 +86,13 @@ class SolveOptions:
                                      # the factory confirms (same NLP up to renaming objects of
                                      # equal geometry and scene data, `gnppdsl.conflicts.lifting`);
                                      # False: the one instance found (before issue 19)
-    interleave_conflicts: bool = False  # gnpp: each conflict (and its lifted and batch-learned
+    interleave_conflicts: bool = True   # gnpp: each conflict (and its lifted and batch-learned
                                      # instances) also forbids its copies with steps inserted or
                                      # removed across transitions M relates only by chain
                                      # equalities (a parked base, an object staying put), up to
-                                     # max_horizon (`gnppdsl.conflicts.interleave`). Off until
-                                     # checked on the Workshop (stretch_conflicts' clingo cost
-                                     # there); on: field4 155.8 -> 58.8 s CPU, field5 131.8 -> 39.8
+                                     # max_horizon (`gnppdsl.conflicts.interleave`). On: field4
+                                     # 155.8 -> 58.8 s CPU, field5 131.8 -> 39.8; work1-5, stack_8,
+                                     # clutter_2/3, p4, p7: the same plans, conflicts and NLPs
     batch_conflicts: int = 64        # gnpp: NLPs per conflict deciding its renamings onto other
                                      # objects of the same type (pairs too, e.g. block and arm)
                                      # that lifting cannot accept; the infeasible ones are learned

@@ -207,11 +207,12 @@ def test_argparse_rejects_bad_choices_with_exit_2(capsys, argv):
 
 
 @pytest.mark.parametrize("setting, argv, expected", [
-    (None, [], (False, False)),                                     # SolveOptions' defaults
-    (None, ["--interleave-conflicts"], (True, False)),
-    (None, ["--stretch-conflicts"], (False, True)),
+    (None, [], (True, False)),                                      # SolveOptions' defaults
+    (None, ["--no-interleave-conflicts"], (False, False)),
+    (None, ["--stretch-conflicts"], (True, True)),
     ("interleave_conflicts = true  stretch_conflicts = true", [], (True, True)),
-    ("interleave_conflicts = true", ["--no-interleave-conflicts"], (False, False)),   # the command line wins
+    ("interleave_conflicts = false", ["--interleave-conflicts"], (True, False)),   # the command line wins
+    ("interleave_conflicts = false", [], (False, False)),
 ])
 def test_conflict_generalisations_reach_the_loop_from_the_setting_and_the_command_line(
         tmp_path, monkeypatch, setting, argv, expected):
