@@ -10,7 +10,7 @@ import dataclasses
 from pathlib import Path
 
 from gnppdsl.ir import model as M
-from gnppdsl.ir.expr import Call, Obj, Str
+from gnppdsl.ir.expr import Call, Obj, Param, Str
 from gnppdsl.ir.families import FactExpander, group_names
 from gnppdsl.ir.resolve_logic import LogicResolver
 from gnppdsl.ir.resolve_settings import settings_reachability, settings_relaxations, settings_solver
@@ -160,6 +160,7 @@ class ProblemResolver:
         if scene is not None:
             self.check_scene_objects(dom, objects, scene, scene_ref_span)
             self.check_link_names(dom, scene)
+            self.check_scene_attributes(dom, objects, scene)
             for rb in reach:
                 if scene.dimension != 3:
                     # the graph samples IK solutions of a URDF robot: refused here rather than
@@ -222,6 +223,51 @@ class ProblemResolver:
                          f"{what} '{name}' (template {t.name}): no robot of scene {Path(scene.path).name} "
                          f"({robots}) has {has} of that name", "unknown-link",
                          did_you_mean(name, sorted(known)) or fallback)
+
+    def check_scene_attributes(self, dom: M.Domain, objects: dict[str, str], scene) -> None:
+        """A scene attribute a template reads of one of its parameters (`base_clearance(r)`),
+        called by a rule with one of the rule's parameters there, must be in the scene entry of
+        every problem object of that parameter's type; else the solve stops at the first
+        grounding that reads it (a located error, but after loading, grounding and planning).
+        An error when the rule applies at every step to every grounding (`always`, no `where`);
+        a warning otherwise, since the rule's pattern may never hold for that object. Attributes
+        the factory derives from the entry itself (`size`, `home`, `pose0`, ...) are not
+        checked: whether those exist depends on the entry's kind, not on its keys."""
+        from gnppdsl.ir.scene_model import DERIVED_ATTRIBUTES
+
+        declared = {n for n in dom.scene_attrs if n not in DERIVED_ATTRIBUTES}
+        if not declared:
+            return
+        probe = M.Problem("", "", dom, objects, (), ())
+        reported: set[tuple[str, str]] = set()
+        for rule in dom.rules:
+            types = {p.name: p for p in rule.params}
+            certain = rule.kind == "always" and not rule.where
+            for call in rule.calls:
+                t = dom.templates.get(call.template)
+                if t is None:
+                    continue
+                bound = {sig.name: a.name for sig, a in zip(t.params, call.args)
+                         if isinstance(a, Param) and a.name in types}
+                # reads in the template's body (of its parameters) and in the call's arguments
+                # (of the rule's: `planar.within(q(g), reach_min(g), reach_max(g))`)
+                reads = [(node, bound) for node in _walk(t.body)] + \
+                    [(node, {n: n for n in types}) for node in _walk(call.args)]
+                for node, names in reads:
+                    if not (isinstance(node, Call) and node.fn in declared and len(node.args) == 1
+                            and isinstance(node.args[0], Param) and node.args[0].name in names):
+                        continue
+                    param = types[names[node.args[0].name]]
+                    for (obj,) in probe.groundings((param,)):
+                        ent = scene.entity(obj)
+                        if ent is None or node.fn in ent.attributes or (node.fn, obj) in reported:
+                            continue
+                        reported.add((node.fn, obj))
+                        report = self.err if certain else self.r.warning
+                        report(node.span or call.span or rule.span,
+                               f"scene entry '{obj}' of {Path(scene.path).name} has no attribute "
+                               f"'{node.fn}', which rule {rule.name} reads of it (calling {t.name})",
+                               "scene-missing", f"add `{node.fn}:` to '{obj}' in the scene")
 
     def check_scene_objects(self, dom: M.Domain, objects: dict[str, str], scene, span) -> None:
         """Objects with a geometric role must be in the scene: robots of `joints(r)` variables

@@ -79,3 +79,9 @@ class Scene:
         names = set(declared)
         return {n: o for n, o in self.objects.items()
                 if o.shape.kind != "none" and (o.static or n not in names)}
+
+
+#: scene attributes the factory derives from an entry itself rather than from a key of the same
+#: name (`compile.factory._attr_value`): a shape's `size` and `radius`, a robot's `home`,
+#: `joint_min` / `joint_max` (its model) and `base`, any entry's `pose0` / `pose`
+DERIVED_ATTRIBUTES = frozenset({"size", "radius", "home", "joint_min", "joint_max", "pose0", "pose", "base"})

@@ -344,3 +344,40 @@ def test_an_unknown_fk_frame_is_located(tmp_path):
     _copy(d2)
     _with_wrist_height(d2, "r_wrist_flex_joint")
     assert check_files([str(d2 / "sort_random_pr2.pntc")]).ok
+
+
+def test_a_missing_scene_attribute_is_found_by_check(tmp_path):
+    """`base_clearance(r)` read by rule arm_table (`always`, every robot) of a robot whose scene
+    entry lacks it: an error of `gnpp check` at the read, naming the entry; before, the check
+    passed and the solve stopped at the first grounding, after loading and planning."""
+    d = _copy(tmp_path)
+    s = (d / "sorting_setting.yaml").read_text()
+    assert s.count("    base_clearance: 0.15\n") == 1
+    (d / "sorting_setting.yaml").write_text(s.replace("    base_clearance: 0.15\n", ""))
+    text = (d / "domain.pntc").read_text().splitlines()
+    line = next(i for i, t in enumerate(text, 1) if "sdist(link(r, \"base\"), t) >= base_clearance(r)" in t)
+    rep = check_files([str(d / "sort2.pntc")])
+    x = _at(rep.reporter.diagnostics, "domain.pntc", line, text[line - 1].index("base_clearance") + 1,
+            "scene-missing")
+    assert x.severity == "error" and "'mm'" in x.message and "'base_clearance'" in x.message
+    assert check_files([str(MOBILE / "sort2.pntc")]).ok
+
+
+def test_a_scene_attribute_a_conditional_rule_reads_is_a_warning(tmp_path):
+    """planar.inside reads `half_extent(r)` for rule placed (`parent(o) = r`): a region without it
+    is a warning (the rule may never hold for it), a gripper without `reach_min` (rule reach,
+    `always`) an error."""
+    planar = MOBILE.parent / "planar"
+    for f in ("domain.pntc", "p1_one_block.pntc", "p1_one_block.yaml"):
+        shutil.copy(planar / f, tmp_path / f)
+    y = (tmp_path / "p1_one_block.yaml").read_text()
+    assert y.count(", half_extent: [0.15, 0.15]") == 1
+    (tmp_path / "p1_one_block.yaml").write_text(y.replace(", half_extent: [0.15, 0.15]", ""))
+    rep = check_files([str(tmp_path / "p1_one_block.pntc")])
+    assert rep.ok
+    [w] = [d for d in rep.reporter.diagnostics if d.kind == "scene-missing"]
+    assert w.severity == "warning" and "'r1'" in w.message and "'half_extent'" in w.message
+    (tmp_path / "p1_one_block.yaml").write_text(y.replace(", reach_min: [-1, -1]", ""))
+    rep = check_files([str(tmp_path / "p1_one_block.pntc")])
+    assert [(d.severity, d.kind) for d in rep.reporter.errors] == [("error", "scene-missing")]
+    assert "'reach_min'" in rep.reporter.errors[0].message
