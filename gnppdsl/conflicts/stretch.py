@@ -14,7 +14,7 @@ Soundness (the argument of Prop. 7.1, with one more step). Let the conflict <p_0
 from M and let p_j = ... = p_k = B (k > j) be a run of equal non-empty partial states such that
 (a) no variable of M is a trajectory, (b) every factor of M has its variables and generator
 within two consecutive steps, and (c) every factor of M whose variables or generator touch two
-steps of the run is an equality `x == x'` between one variable key at consecutive steps
+steps of the run is a chain equality `x[s] == x'[s]` between one variable at consecutive steps (`conflicts.interleave.chain_equality`)
 (`same(pose(o), pose(o)')`) or a transition template tagged PREORDER over the same variable keys
 at both steps (reflexive and transitive: `tools.push_motion`). Take a plan whose states contain <p_0 .. p_{j-1}, B x m,
 p_{k+1} .. p_L> for some m >= 1, and map M's run steps monotonically onto the m copies, first
@@ -33,8 +33,8 @@ from typing import Sequence
 
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.compile.sas import PartialState
+from gnppdsl.conflicts.interleave import chain_equality
 from gnppdsl.conflicts.mapping import step_range
-from gnppdsl.ir.expr import Slot
 
 MAX_VARIANTS = 64
 """Stretched sequences learned per conflict instance at most (all lengths of one run fit:
@@ -46,15 +46,6 @@ PREORDER = "preorder"
 step and of the next, is reflexive and transitive (a preorder: `tools.push_motion`, a push
 forward along the block's own +y axis, at its height, without turning it). The template's
 author asserts it; tests/conflicts/test_conflicts_stretch.py checks the standard library's."""
-
-
-def _equality(f: FactorInstance) -> bool:
-    """Is f exactly `x == x'` between one variable key at two consecutive steps?"""
-    if len(f.variables) != 2 or len(f.body) != 1:
-        return False
-    c, (a, b) = f.body[0], f.variables
-    return (c.op == "==" and {c.lhs, c.rhs} == {Slot(0), Slot(1)} and a.key == b.key
-            and (a.space, a.dim) == (b.space, b.dim) and abs(a.step - b.step) == 1)
 
 
 def _preorder(f: FactorInstance) -> bool:
@@ -87,7 +78,7 @@ def stretchable_runs(factors: Sequence[FactorInstance], seq: Sequence[PartialSta
             k += 1
         if k > j and seq[j].facts:
             inside = range(j, k + 1)
-            if all(_equality(f) or _preorder(f) for f, steps in spans if len(steps) == 2 and steps <= set(inside)):
+            if all(chain_equality(f) or _preorder(f) for f, steps in spans if len(steps) == 2 and steps <= set(inside)):
                 runs.append((j, k))                         # (c)
         j = k + 1
     return runs
