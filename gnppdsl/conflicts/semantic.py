@@ -52,7 +52,7 @@ _BODY_HASHES: dict[Any, str] = {}
 _BY_ID: dict[tuple[str, int], tuple[Any, Any]] = {}
 
 
-def _by_id(kind: str, body: Any, compute: Callable[[Any], Any]) -> Any:
+def by_identity(kind: str, body: Any, compute: Callable[[Any], Any]) -> Any:
     """`compute(body)` remembered by the identity of `body` (the entry holds the body, so its
     id is not reused while the entry lives). Why not only a dict keyed by the body: a resolved
     body is a tree of frozen dataclasses whose hash is recomputed, node by node in Python, at
@@ -71,7 +71,7 @@ def _by_id(kind: str, body: Any, compute: Callable[[Any], Any]) -> Any:
 
 def body_hash(body: tuple) -> str:
     """A stable hash of a resolved factor body (spans excluded: they are repr=False)."""
-    return _by_id("hash", body, _body_hash)
+    return by_identity("hash", body, _body_hash)
 
 
 def _body_hash(body: tuple) -> str:
@@ -95,7 +95,7 @@ ObjectKey = Callable[[str], str]
 
 def body_objects(body: Any) -> frozenset[str]:
     """Names of the objects a resolved body refers to (`Obj` nodes: sdist bodies, fk robots)."""
-    return _by_id("objects", body, _body_objects)
+    return by_identity("objects", body, _body_objects)
 
 
 def _body_objects(body: Any) -> frozenset[str]:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from gnppdsl.compile.pair_factors import pair_factor
+from gnppdsl.conflicts.semantic import by_identity
 from gnppdsl.solve.result import Result
 from gnppdsl.solve.verify_solution import SolutionReport, _FACT, plan_failures, verify_solution
 
@@ -116,6 +117,20 @@ def _known(factors) -> set:
             for x in e.args:
                 yield from distances(x)
 
+    def body_pairs(body) -> list:
+        """The (waypoint, pair) of each distance a body queries (walked once per body: each
+        round and each plan's graph share the bodies; walking them again cost 4 s a call on
+        lab5_paper, 3229 factors, a profile)."""
+        pairs = []
+        for c in body:
+            for d in distances(c.lhs):
+                a, b = body_name(d.args[0]), body_name(d.args[2])
+                if a is None or b is None:
+                    continue
+                ks = waypoints(d.args[1], set()) | waypoints(d.args[3], set())
+                pairs.append((f"{ks.pop():g}" if len(ks) == 1 else None, frozenset((a, b))))
+        return pairs
+
     known = set()
     for f in factors:
         if f.rule == "avoid":
@@ -124,27 +139,9 @@ def _known(factors) -> set:
             continue
         if "collision" not in f.tags:
             continue
-        hit = _BODY_PAIRS.get(id(f.body))
-        if hit is None or hit[0] is not f.body:
-            pairs = []
-            for c in f.body:
-                for d in distances(c.lhs):
-                    a, b = body_name(d.args[0]), body_name(d.args[2])
-                    if a is None or b is None:
-                        continue
-                    ks = waypoints(d.args[1], set()) | waypoints(d.args[3], set())
-                    pairs.append((f"{ks.pop():g}" if len(ks) == 1 else None, frozenset((a, b))))
-            if len(_BODY_PAIRS) > 100_000:
-                _BODY_PAIRS.clear()
-            hit = _BODY_PAIRS[id(f.body)] = (f.body, pairs)
-        known.update((f.step, w, pair) for w, pair in hit[1])
+        known.update((f.step, w, pair) for w, pair in by_identity("pairs", f.body, body_pairs))
     return known
 
-
-_BODY_PAIRS: dict[int, tuple] = {}
-"""`_known`'s (waypoint, pair) list of a factor body, by the body's identity (the entry holds
-the body, so the id is not reused while it lives): each round and each plan's graph share the
-bodies, and walking them again cost 4 s a call on lab5_paper (3229 factors, a profile)."""
 
 
 def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: Any,
