@@ -81,3 +81,34 @@ def test_graph_waypoints_warm_start_trajectories(run):
     # not a trajectory the block does not name
     other = VarInstance("other", (robot,), 0, "joints", 20 * nq, frozenset({"traj"}), waypoints=20)
     assert run.reach_warmstart(other, {q(0): qa, q(1): qb}) is None
+
+
+def test_rlgp_keyframes_start_next_to_what_they_act_on():
+    """R-LGP starts a keyframe with the robot's base next to the object it picks or the tray it
+    drops into, on the side nearest where the base stood before (`rlgp.reach_keyframe_starts`);
+    GNPP keeps the home start. pick_place3 instance 9 (red1 0.95 m from the start, south of the
+    table's centre line): from home, the first pick was made from the far side (base 10.05 m)."""
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+
+    c = load_and_compile([str(MOBILE / "pick_place3.pntc")], instance=9)
+    plan = ("pick(red1, mm, center); drop(red1, mm, red_tray); pick(blue1, mm, center); "
+            "drop(blue1, mm, red_tray); pick(red2, mm, center); drop(red2, mm, red_tray)")
+    states = plan_states(c.task, parse_plan(c.task, plan))
+    targets = {1: "red1", 2: "red_tray", 3: "blue1", 4: "red_tray", 5: "red2", 6: "red_tray"}
+    home = np.asarray(c.problem.scene.robots["mm"].home, float)
+    table = c.problem.scene.objects["center"]
+    starts = {}
+    for algorithm in ("rlgp", "gnpp"):
+        loop = Loop(c, SolveOptions(algorithm=algorithm, time_limit=120).validated(), None)
+        g = loop.build_graph(states)
+        starts[algorithm] = {v.step: np.asarray(g.initial_guess[v], float) for v in g.variables
+                             if v.kind == "q" and not v.waypoints and v.step >= 1}
+    assert set(starts["rlgp"]) == set(targets)
+    for step, name in targets.items():
+        q = starts["rlgp"][step]
+        target = np.asarray(c.problem.scene.objects[name].pose[:2], float)
+        assert np.linalg.norm(q[:2] - target) <= 0.95 + 1e-9, (step, q[:3])     # within arm's reach
+        assert np.allclose(q[3:], home[3:])                                   # the arm at home
+        assert np.allclose(starts["gnpp"][step], home)
+    # the first pick not from the far (north) half of the room: the robot starts south of the table
+    assert starts["rlgp"][1][1] <= table.pose[1]
