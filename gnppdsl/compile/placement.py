@@ -67,17 +67,18 @@ def _footprint_free(x: float, y: float, obstacles) -> bool:
 
 def base_next_to(target: Sequence[float], home: Sequence[float], obstacles,
                  lo: Sequence[float] | None = None, hi: Sequence[float] | None = None,
-                 near: Sequence[float] | None = None) -> list[float] | None:
+                 near: Sequence[float] | None = None, across_rings: bool = False) -> list[float] | None:
     """`home` ([x, y, theta, arm...]) with the base at the first free point around target's
     (x, y) nearest the base `near` (default: home's; see the module docstring), facing it; None
-    when no ring point is free."""
+    when no ring point is free. `across_rings`: the free point of any ring nearest `near` (the
+    least travel), instead of the nearest one of the innermost ring with a free point."""
     tx, ty = float(target[0]), float(target[1])
     hx, hy = (float(near[0]), float(near[1])) if near is not None else (float(home[0]), float(home[1]))
-    for r in RADII:
+    for r in ([RADII] if across_rings else [(r,) for r in RADII]):
         points = []
-        for k in range(ANGLES):
-            a = 2 * math.pi * k / ANGLES
-            x, y = tx + r * math.cos(a), ty + r * math.sin(a)
+        for k in range(ANGLES * len(r)):
+            a = 2 * math.pi * (k % ANGLES) / ANGLES
+            x, y = tx + r[k // ANGLES] * math.cos(a), ty + r[k // ANGLES] * math.sin(a)
             if lo is not None and hi is not None and not (lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]):
                 continue
             points.append((math.hypot(x - hx, y - hy), k, x, y))
@@ -90,9 +91,10 @@ def base_next_to(target: Sequence[float], home: Sequence[float], obstacles,
 
 
 def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance"],
-                    states: Sequence[Sequence[int]]) -> dict["VarInstance", list[float]]:
+                    states: Sequence[Sequence[int]], across_rings: bool = False) -> dict["VarInstance", list[float]]:
     """The base placements of the keyframe variables among `variables` (see the module
-    docstring); empty when the scene has no robot with a planar base."""
+    docstring; `across_rings`: `base_next_to`'s); empty when the scene has no robot with a
+    planar base."""
     scene, task = factory.scene, factory.task
     if scene is None or getattr(scene, "dimension", 3) != 3:
         return {}
@@ -137,7 +139,7 @@ def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance
     for _, robot, v, target in sorted(targets, key=lambda t: (t[0], t[1])):
         spec = mobile[robot]
         lo, hi = spec.attributes.get("base_min"), spec.attributes.get("base_max")
-        q = base_next_to(target, spec.home, obstacles, lo, hi, near=previous[robot])
+        q = base_next_to(target, spec.home, obstacles, lo, hi, near=previous[robot], across_rings=across_rings)
         if q is not None:
             out[v] = q
             previous[robot] = q

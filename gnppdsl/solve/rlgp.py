@@ -98,24 +98,32 @@ class ReachabilityCosts:
             self.stats.reach_time += time.perf_counter() - t0
         return dc_replace(task, pair_costs=costs)
 
-    def reach_keyframe_starts(self, graph: GraphNLP) -> None:
+    def reach_keyframe_starts(self, graph: GraphNLP, states) -> None:
         """R-LGP: a keyframe of a robot with a reachability graph starts with its base placed
-        next to what it acts on at the step, on the side nearest where the base stood before
-        (`compile.placement`, until now only the start of the solver's odd restarts), instead of
-        at the robot's home like every other keyframe.
+        next to what it acts on at the step, at the free placement nearest where the base stood
+        before (`compile.placement.restart_guesses` with `across_rings`: the least travel; the
+        solver's odd restarts take the innermost ring's), instead of at the robot's home like
+        every other keyframe.
 
         Why: from home, the NLP puts each keyframe's base on whichever side of the table it
         settles; the travel costs only order the plan and the optimisation phase moves the
         solution locally, so neither brings a base back from the wrong side. Measured
-        (pick_place3, seed 0): instance 9's first pick, red1 0.95 m from the start, was made
-        from the far side of the table (base 10.05 m in all; GNPP 4.44 m), instance 11 drove
-        7.46 m; from the placements 3.43 m and 1.14 m, in less CPU (29.3 -> 23.1 s, 21.6 -> 7.1
-        s). Plain GNPP keeps the home start (the baseline R-LGP is compared with)."""
+        (pick_place3, seed 0, `gnpp bench --instances 5 --seed 8`): instance 9's first pick,
+        red1 0.95 m from the start, was made from the far side of the table (base 10.05 m in
+        all; GNPP 4.44 m), instance 11 drove 7.46 m. Over instances 8-12 the mean base path
+        went 5.25 -> 2.48 m (GNPP 2.74 m) and the mean CPU 22.5 -> 16.6 s (GNPP 19.2 s), all
+        verified; with the innermost ring's placement instead, 2.31 m and 14.5 s, but sort2
+        (plan from the travel costs) drove 2.11 m with an active-set round more (1.96 m here,
+        2.07 m from home) and sort_random_pr2 instance 0 7.40 m (3.04 m here, 4.10 m from
+        home). Plain GNPP keeps the home start (the baseline R-LGP is compared with)."""
         if self.options.algorithm != "rlgp" or not self.reach:
             return
-        for v, q in graph.restart_guess.items():
+        from gnppdsl.compile.placement import restart_guesses
+
+        placed = restart_guesses(self.compiled.factory, graph.variables, states, across_rings=True)
+        for v, q in placed.items():
             if not v.waypoints and v.args and v.args[0] in self.reach:
-                graph.initial_guess[v] = q
+                graph.initial_guess[v] = np.asarray(q, float)
 
     def reach_warmstart(self, traj: VarInstance, values: dict) -> np.ndarray | None:
         """Alg. 1's getWaypoints: the graph's collision-checked path between the trajectory's

@@ -118,7 +118,7 @@ class Run(ReachabilityCosts):
     def build_graph(self, states: Sequence[Sequence[int]]) -> GraphNLP:
         t0 = time.perf_counter()
         graph = plan_graph(self.compiled.factory, states)
-        self.reach_keyframe_starts(graph)
+        self.reach_keyframe_starts(graph, states)
         self.stats.factory_time += time.perf_counter() - t0
         self.graph_factors = graph.n_factors       # the batch's gate (`batch_min_factors`)
         return graph

@@ -112,3 +112,15 @@ def test_rlgp_keyframes_start_next_to_what_they_act_on():
         assert np.allclose(starts["gnpp"][step], home)
     # the first pick not from the far (north) half of the room: the robot starts south of the table
     assert starts["rlgp"][1][1] <= table.pose[1]
+
+
+def test_placement_across_rings_is_the_least_travel():
+    """`base_next_to(..., across_rings=True)` (R-LGP's keyframe starts): the free ring point
+    nearest the previous base over every ring; without it (the restarts), the innermost ring's."""
+    from gnppdsl.compile.placement import RADII, base_next_to
+
+    home = [0.0, -2.0, 0.0, 0.1]
+    inner = base_next_to([0.0, 0.0], home, [])
+    least = base_next_to([0.0, 0.0], home, [], across_rings=True)
+    assert np.allclose(inner[:2], [0.0, -min(RADII)]) and np.allclose(least[:2], [0.0, -max(RADII)])
+    assert np.isclose(least[2], np.pi / 2) and least[3:] == home[3:]      # facing the target, arm at home
