@@ -47,14 +47,16 @@ stretching M' then covers the original distance and every other one.
 Merging (runs of equal states, the Workshop's case): "arm_s pushes b1 and arm_e takes it off the
 stick" was learned with one, then two, then three unrelated actions between push and take,
 the block riding on the stick all along: a run of equal partial states p_{k-1} = p_k tied by
-chain links. Two adjacent steps k-1, k are merged (`contracted`) when their partial states in
+chain links. Two adjacent steps k-1, k are merged (`merged`) when their partial states in
 M are equal, every factor of M crossing k-1 -> k is a chain link at k-1, no trajectory runs
 between them, and the variables of a key present at both steps have the same dimension and
 bounds: the crossing factors are dropped and the later steps move one earlier. The merged M' is
 infeasible: from a solution of M' give both steps the merged step's values; the factors at k-1
 and at k read exactly what they read in M', each dropped chain link holds by reflexivity, so M
 would be feasible. Its partial states are M's, one of the equal pair left out, so every plan
-containing them contains M' (Property 4.2). Stretching then holds the run for any length >= 1.
+containing them contains M' (Property 4.2). M' is not stretched where the pair was: a copy of
+the run's state between them would need the dropped links (a step of M inside the run maps to
+a step whose state holds only the bridge); the unmerged M covers the longer runs.
 
 Preorder chains (option `preorder`, the solver's `stretch_conflicts`): a transition template
 tagged PREORDER is, as a relation between the values of one step and of the next, reflexive
@@ -67,7 +69,7 @@ merging) and transitivity (stretching). Off by default: on Work_5 (seed 0) the p
 
 Cost: no NLP; the instances of each length are one lifted constraint for the planner. At most
 `limit` instances per conflict, no longer than `max_length` states (the planner's horizon + 1),
-fewest inserted steps first.
+shortest first.
 """
 from __future__ import annotations
 
@@ -178,21 +180,41 @@ def _key(f: FactorInstance) -> tuple:
 
 
 def contracted(factors: Sequence[FactorInstance], preorder: bool = False) -> tuple[FactorInstance, ...]:
-    """M with every removable step removed (module docstring, "Contraction" and "Merging"),
-    until none is left: an interior step k whose variables M constrains only by chain links
-    across k-1 -> k and k -> k+1, the same ones on both sides (rule, template, bindings and
-    generator), loses the factors across k -> k+1; two adjacent steps with equal partial
-    states tied only by chain links lose the factors between them. Either way every later
-    step moves one earlier."""
+    """M with every removable step removed (module docstring, "Contraction"), until none is
+    left: an interior step k whose variables M constrains only by chain links across k-1 -> k
+    and k -> k+1, the same ones on both sides (rule, template, bindings and generator), loses
+    the factors across k -> k+1, and every later step moves one earlier."""
     current = tuple(factors)
-    while True:
-        step = _contractible(current, preorder)
-        if step is None:
-            step = _mergeable(current, preorder)
-        if step is None:
-            return current
-        drop, k = step
-        current = tuple(dict.fromkeys(f if f.step < k else _shift(f, -1) for f in current if f not in drop))
+    while (step := _contractible(current, preorder)) is not None:
+        current = _removed(current, *step)
+    return current
+
+
+def merged(factors: Sequence[FactorInstance], preorder: bool = False,
+           limit: int = LIMIT) -> list[tuple[FactorInstance, ...]]:
+    """`factors` and the subgraphs with runs of equal partial states shortened (module
+    docstring, "Merging"): every set of adjacent pairs merged, fewest merges first, at most
+    `limit`. The unmerged one stays: only it may be stretched inside a run."""
+    out = [tuple(factors)]
+    seen = {to_partial_states(out[0])}
+    frontier = out[:]
+    while frontier and len(out) < limit:
+        nxt = []
+        for current in frontier:
+            for drop, k in _mergeable(current, preorder):
+                m = _removed(current, drop, k)
+                key = to_partial_states(m)
+                if key not in seen and len(out) < limit:
+                    seen.add(key)
+                    out.append(m)
+                    nxt.append(m)
+        frontier = nxt
+    return out
+
+
+def _removed(current: tuple[FactorInstance, ...], drop, k: int) -> tuple[FactorInstance, ...]:
+    """`current` without the factors `drop`, the steps from k on one earlier."""
+    return tuple(dict.fromkeys(f if f.step < k else _shift(f, -1) for f in current if f not in drop))
 
 
 def _contractible(current: tuple[FactorInstance, ...], preorder: bool):
@@ -212,9 +234,9 @@ def _contractible(current: tuple[FactorInstance, ...], preorder: bool):
 
 
 def _mergeable(current: tuple[FactorInstance, ...], preorder: bool):
-    """(factors to drop, first step to move) of two adjacent steps k-1, k with equal partial
-    states whose crossing factors are all chain links at k-1 (no trajectory between them), the
-    variables of a key at both steps alike; or None."""
+    """(factors to drop, first step to move) of each pair of adjacent steps k-1, k with equal
+    partial states whose crossing factors are all chain links at k-1 (no trajectory between
+    them), the variables of a key at both steps alike."""
     first, last = step_range(current)
     seq = to_partial_states(current)
     for k in range(first + 1, last + 1):
@@ -227,8 +249,7 @@ def _mergeable(current: tuple[FactorInstance, ...], preorder: bool):
         if any(v.waypoints for v in at[k - 1].values()) \
                 or any(not _same_variable(v, at[k][key]) for key, v in at[k - 1].items() if key in at[k]):
             continue
-        return set(crossing), k
-    return None
+        yield set(crossing), k
 
 
 def _steps(f: FactorInstance) -> set[int]:
@@ -241,35 +262,36 @@ def _shift(f: FactorInstance, by: int) -> FactorInstance:
 
 def stretched(factors: Sequence[FactorInstance], max_length: int, limit: int = LIMIT,
               preorder: bool = False) -> list[Conflict]:
-    """The conflict of `factors`, then that of M contracted (`contracted`) and its stretched
-    instances (module docstring), each at most `max_length` partial states long, fewest
-    inserted steps first, at most `limit` in all (duplicates counted once). `preorder`: PREORDER
-    transitions are chain links too."""
+    """The conflict of `factors`, then the instances of M contracted (`contracted`), with its
+    runs shortened (`merged`) and stretched (module docstring): each at most `max_length`
+    partial states long, shortest first, at most `limit` in all (duplicates counted once).
+    `preorder`: PREORDER transitions are chain links too."""
     out = [to_partial_states(factors)]
-    factors = contracted(factors, preorder)
-    seq = to_partial_states(factors)
-    if seq not in out:
-        out.append(seq)
-    bridge = bridges(factors, preorder)
-    spots = [j for j, b in enumerate(bridge) if b is not None]
-    if not spots:
-        return out
     seen = set(out)
-    for extra in range(1, max_length - len(seq) + 1):
-        for counts in _compositions(extra, len(spots)):
-            inserted = dict(zip(spots, counts))
-            inst: list[PartialState] = []
-            for j, p in enumerate(seq):
-                inst.append(p)
-                if j in inserted:
-                    inst.extend([bridge[j]] * inserted[j])
-            inst_t = tuple(inst)
-            if inst_t in seen:
+    shapes = []
+    for m in merged(contracted(factors, preorder), preorder):
+        seq = to_partial_states(m)
+        bridge = bridges(m, preorder)
+        shapes.append((seq, bridge, [j for j, b in enumerate(bridge) if b is not None]))
+    for length in range(min(len(seq) for seq, _, _ in shapes), max_length + 1):
+        for seq, bridge, spots in shapes:
+            extra = length - len(seq)
+            if extra < 0 or (extra and not spots):
                 continue
-            seen.add(inst_t)
-            out.append(inst_t)
-            if len(out) >= limit:
-                return out
+            for counts in _compositions(extra, len(spots)) if spots else [()]:
+                inserted = dict(zip(spots, counts))
+                inst: list[PartialState] = []
+                for j, p in enumerate(seq):
+                    inst.append(p)
+                    if j in inserted:
+                        inst.extend([bridge[j]] * inserted[j])
+                inst_t = tuple(inst)
+                if inst_t in seen:
+                    continue
+                seen.add(inst_t)
+                out.append(inst_t)
+                if len(out) >= limit:
+                    return out
     return out
 
 

@@ -15,7 +15,7 @@ from conflicts_fixture_factors import HOLDING, PARENT_B1, at_spot, grasp, q, sam
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance  # noqa: E402
 from gnppdsl.compile.sas import PartialState  # noqa: E402
-from gnppdsl.conflicts.interleave import LIMIT, contracted, stretched  # noqa: E402
+from gnppdsl.conflicts.interleave import LIMIT, merged, stretched  # noqa: E402
 from gnppdsl.conflicts.mapping import to_partial_states  # noqa: E402
 from gnppdsl.ir.expr import Call, Constraint, Num, Slot  # noqa: E402
 
@@ -51,7 +51,8 @@ def test_a_run_tied_by_equalities_merges_to_one_step_and_is_learned_for_every_le
     fs = _held_for(3)
     seq = to_partial_states(fs)
     assert seq[1] == seq[2] == seq[3] == B and len(seq) == 5
-    assert to_partial_states(contracted(fs)) == to_partial_states(_held_for(1))
+    shapes = [to_partial_states(m) for m in merged(fs)]
+    assert shapes == [seq, to_partial_states(_held_for(2)), to_partial_states(_held_for(1))]
     out = stretched(fs, max_length=8)
     assert out[0] == seq
     for n in range(1, 7):            # 7 would be 9 states long
@@ -63,7 +64,7 @@ def test_a_run_tied_by_equalities_merges_to_one_step_and_is_learned_for_every_le
 def test_a_run_with_another_factor_between_its_steps_is_not_merged():
     # a bounded move per step: three steps reach 0.2 where one reaches nothing (not sound)
     fs = _held_for(3) + [_step_limit(1), _step_limit(2)]
-    assert len(to_partial_states(contracted(fs))) == 5
+    assert merged(fs) == [tuple(fs)]
     shorter = to_partial_states(_held_for(1))
     assert not any(_forbids(s, shorter) for s in stretched(fs, max_length=8))
 
@@ -75,14 +76,14 @@ def test_steps_with_a_trajectory_between_them_are_not_merged():
                           span=1, generator=(B,), variables=(path,),
                           body=(Constraint(Call("norm", (Slot(0),)), "<=", Num(1.0)),))
     # steps 1 and 2 stay apart (the motion from step 1 is part of M); 2 and 3 merge
-    merged = contracted(fs + [traj])
-    assert len(to_partial_states(merged)) == 4
-    assert any(v.waypoints and v.step == 1 for f in merged for v in f.variables)
+    shapes = merged(fs + [traj])
+    assert [len(to_partial_states(m)) for m in shapes] == [5, 4]
+    assert any(v.waypoints and v.step == 1 for f in shapes[-1] for v in f.variables)
 
 
 def test_unequal_adjacent_states_are_not_merged_and_the_count_is_capped():
     one = _held_for(1)
-    assert to_partial_states(contracted(one)) == to_partial_states(one)
+    assert merged(one) == [tuple(one)]
     assert len(stretched(_held_for(3), 1000)) == LIMIT
 
 
