@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.conflicts.batch import Batcher, subsumed
+from gnppdsl.conflicts.batch import Batcher, Reachable, subsumed
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
 from gnppdsl.conflicts.lifting import Lifter
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
@@ -88,7 +88,7 @@ class Run(ReachabilityCosts):
         if options.batch_conflicts > 0 and options.algorithm != "oneway" and compiled.object_key is not None:
             self.batcher = Batcher(self.lifter or Lifter(compiled.factory, self.task, compiled.problem.objects,
                                                          compiled.object_key),
-                                   options.batch_conflicts)
+                                   options.batch_conflicts, reachable=Reachable(self.task))
 
     def say(self, msg: str) -> None:
         if self.progress is not None:
@@ -319,6 +319,7 @@ class Run(ReachabilityCosts):
             stats.learned += len(out)
             self.stats.batch_candidates, self.stats.batch_learned = stats.candidates, stats.learned
             self.stats.batch_cached, self.stats.batch_time = stats.cached, stats.time
+            self.stats.batch_unreachable = stats.unreachable
         return out
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
