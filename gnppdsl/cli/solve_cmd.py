@@ -71,9 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "again per interleaving of other actions. Default: the problem's solver "
                              "setting `interleave_conflicts`, else on")
     parser.add_argument("--stretch-conflicts", action=argparse.BooleanOptionalAction, default=None,
-                        help="gnpp/rlgp: a conflict whose partial states repeat also forbids the repeats "
-                             "held for any number of steps. Default: the problem's solver setting "
-                             "`stretch_conflicts`, else off")
+                        help="gnpp/rlgp, with interleaved conflicts: transitions of `preorder`-tagged "
+                             "templates (a push held over several steps) count as pass-through steps "
+                             "too. Default: the problem's solver setting `stretch_conflicts`, else off")
 
 
 #: seconds the hard alarm (`gnppdsl.interrupt.arm_time_limit`) waits after the loop's own

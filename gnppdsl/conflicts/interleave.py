@@ -44,9 +44,32 @@ feasible. Every plan containing M''s partial states contains M' (Property 4.2: e
 of M' is one of M's, at the steps it was found at or one earlier), so it is a sound conflict;
 stretching M' then covers the original distance and every other one.
 
+Merging (runs of equal states, the Workshop's case): "arm_s pushes b1 and arm_e takes it off the
+stick" was learned with one, then two, then three unrelated actions between push and take,
+the block riding on the stick all along: a run of equal partial states p_{k-1} = p_k tied by
+chain links. Two adjacent steps k-1, k are merged (`merged`) when their partial states in
+M are equal, every factor of M crossing k-1 -> k is a chain link at k-1, no trajectory runs
+between them, and the variables of a key present at both steps have the same dimension and
+bounds: the crossing factors are dropped and the later steps move one earlier. The merged M' is
+infeasible: from a solution of M' give both steps the merged step's values; the factors at k-1
+and at k read exactly what they read in M', each dropped chain link holds by reflexivity, so M
+would be feasible. Its partial states are M's, one of the equal pair left out, so every plan
+containing them contains M' (Property 4.2). M' is not stretched where the pair was: a copy of
+the run's state between them would need the dropped links (a step of M inside the run maps to
+a step whose state holds only the bridge); the unmerged M covers the longer runs.
+
+Preorder chains (option `preorder`, the solver's `stretch_conflicts`): a transition template
+tagged PREORDER is, as a relation between the values of one step and of the next, reflexive
+and transitive (`tools.push_motion`: a push forward along the block's own +y axis at its
+height; its author asserts it, tests/conflicts/test_conflicts_interleave.py checks the standard
+library's at random poses). Such a factor over the same variable keys at both steps is a chain
+link too: the three arguments above use of `x[s] == x'[s]` only reflexivity (contraction,
+merging) and transitivity (stretching). Off by default: on Work_5 (seed 0) the preorder runs'
+217 instances took clingo's calls from 2.5 to 155 s CPU (docs/design.md, "Stretched conflicts").
+
 Cost: no NLP; the instances of each length are one lifted constraint for the planner. At most
 `limit` instances per conflict, no longer than `max_length` states (the planner's horizon + 1),
-fewest inserted steps first.
+shortest first.
 """
 from __future__ import annotations
 
@@ -63,6 +86,10 @@ Conflict = tuple[PartialState, ...]
 
 LIMIT = 64
 """Stretched instances per conflict (the original included)."""
+
+PREORDER = "preorder"
+"""The tag of a transition template that is reflexive and transitive as a relation between one
+step's values and the next's (module docstring, "Preorder chains")."""
 
 
 def _slot_range(e) -> tuple[int, tuple] | None:
@@ -94,9 +121,36 @@ def chain_equality(f: FactorInstance) -> bool:
     return True
 
 
-def bridges(factors: Sequence[FactorInstance]) -> list[PartialState | None]:
+def _same_variable(a, b) -> bool:
+    """Are `a` and `b` the same continuous variable (key, no trajectory, dimension, bounds) at
+    two steps? Then one may take the other's value (reflexivity needs that much)."""
+    return a.key == b.key and not a.waypoints and not b.waypoints and a.dim == b.dim \
+        and a.lower == b.lower and a.upper == b.upper
+
+
+def preorder_link(f: FactorInstance) -> bool:
+    """Is `f` a transition factor of a template tagged PREORDER over the same variables (keys,
+    dimensions, bounds) at step f.step and at f.step + 1, and no other?"""
+    if PREORDER not in f.tags or f.span != 2 or len(f.generator) != 2:
+        return False
+    at: dict[int, dict] = {f.step: {}, f.step + 1: {}}
+    for v in f.variables:
+        if v.step not in at or v.key in at[v.step]:
+            return False
+        at[v.step][v.key] = v
+    here, there = at[f.step], at[f.step + 1]
+    return bool(here) and here.keys() == there.keys() and all(_same_variable(here[k], there[k]) for k in here)
+
+
+def chain_link(f: FactorInstance, preorder: bool = False) -> bool:
+    """A factor whose copies along consecutive steps compose (module docstring): a chain
+    equality, or with `preorder` a PREORDER transition."""
+    return chain_equality(f) or (preorder and preorder_link(f))
+
+
+def bridges(factors: Sequence[FactorInstance], preorder: bool = False) -> list[PartialState | None]:
     """Per transition j -> j+1 of the conflict of `factors` (relative steps), its bridge B_j
-    when stretchable (module docstring), else None."""
+    when stretchable (module docstring; chain links as `chain_link(f, preorder)`), else None."""
     factors = list(factors)
     first, last = step_range(factors)
     out: list[PartialState | None] = []
@@ -110,7 +164,7 @@ def bridges(factors: Sequence[FactorInstance]) -> list[PartialState | None]:
                 break
             if not (min(steps) <= j < max(steps)):
                 continue                                 # does not cross j -> j+1
-            if not chain_equality(f) or f.step != j:
+            if not chain_link(f, preorder) or f.step != j:
                 ok = False
                 break
             for p in f.generator:
@@ -125,27 +179,77 @@ def _key(f: FactorInstance) -> tuple:
     return f.rule, f.template, f.bindings, f.generator
 
 
-def contracted(factors: Sequence[FactorInstance]) -> tuple[FactorInstance, ...]:
-    """M with every removable step removed (module docstring, "Contraction"): an interior step
-    k whose variables M constrains only by chain equalities across k-1 -> k and k -> k+1, the
-    same ones on both sides (rule, template, bindings and generator). The factors across
-    k -> k+1 are dropped and every later step moves one earlier, so each chain equality
-    across k-1 -> k now relates k-1 to what was k+1."""
+def contracted(factors: Sequence[FactorInstance], preorder: bool = False) -> tuple[FactorInstance, ...]:
+    """M with every removable step removed (module docstring, "Contraction"), until none is
+    left: an interior step k whose variables M constrains only by chain links across k-1 -> k
+    and k -> k+1, the same ones on both sides (rule, template, bindings and generator), loses
+    the factors across k -> k+1, and every later step moves one earlier."""
     current = tuple(factors)
-    while True:
-        first, last = step_range(current)
-        for k in range(first + 1, last):
-            touching = [f for f in current if k in _steps(f)]
-            into = [f for f in touching if f.step == k - 1]
-            out_of = [f for f in touching if f.step == k]
-            if not touching or len(into) + len(out_of) != len(touching) \
-                    or not all(chain_equality(f) for f in touching) \
-                    or sorted(map(_key, into), key=repr) != sorted(map(_key, out_of), key=repr):
-                continue
-            current = tuple(f if f.step < k else _shift(f, -1) for f in current if f.step != k)
-            break
-        else:
-            return current
+    while (step := _contractible(current, preorder)) is not None:
+        current = _removed(current, *step)
+    return current
+
+
+def merged(factors: Sequence[FactorInstance], preorder: bool = False,
+           limit: int = LIMIT) -> list[tuple[FactorInstance, ...]]:
+    """`factors` and the subgraphs with runs of equal partial states shortened (module
+    docstring, "Merging"): every set of adjacent pairs merged, fewest merges first, at most
+    `limit`. The unmerged one stays: only it may be stretched inside a run."""
+    out = [tuple(factors)]
+    seen = {to_partial_states(out[0])}
+    frontier = out[:]
+    while frontier and len(out) < limit:
+        nxt = []
+        for current in frontier:
+            for drop, k in _mergeable(current, preorder):
+                m = _removed(current, drop, k)
+                key = to_partial_states(m)
+                if key not in seen and len(out) < limit:
+                    seen.add(key)
+                    out.append(m)
+                    nxt.append(m)
+        frontier = nxt
+    return out
+
+
+def _removed(current: tuple[FactorInstance, ...], drop, k: int) -> tuple[FactorInstance, ...]:
+    """`current` without the factors `drop`, the steps from k on one earlier."""
+    return tuple(dict.fromkeys(f if f.step < k else _shift(f, -1) for f in current if f not in drop))
+
+
+def _contractible(current: tuple[FactorInstance, ...], preorder: bool):
+    """(factors to drop, first step to move) of an interior step touched only by the same chain
+    links on both sides, or None."""
+    first, last = step_range(current)
+    for k in range(first + 1, last):
+        touching = [f for f in current if k in _steps(f)]
+        into = [f for f in touching if f.step == k - 1]
+        out_of = [f for f in touching if f.step == k]
+        if not touching or len(into) + len(out_of) != len(touching) \
+                or not all(chain_link(f, preorder) for f in touching) \
+                or sorted(map(_key, into), key=repr) != sorted(map(_key, out_of), key=repr):
+            continue
+        return set(out_of), k + 1
+    return None
+
+
+def _mergeable(current: tuple[FactorInstance, ...], preorder: bool):
+    """(factors to drop, first step to move) of each pair of adjacent steps k-1, k with equal
+    partial states whose crossing factors are all chain links at k-1 (no trajectory between
+    them), the variables of a key at both steps alike."""
+    first, last = step_range(current)
+    seq = to_partial_states(current)
+    for k in range(first + 1, last + 1):
+        if seq[k - 1 - first] != seq[k - first]:
+            continue
+        crossing = [f for f in current if min(_steps(f)) <= k - 1 < max(_steps(f))]
+        if not all(chain_link(f, preorder) and f.step == k - 1 for f in crossing):
+            continue
+        at = {s: {v.key: v for f in current for v in f.variables if v.step == s} for s in (k - 1, k)}
+        if any(v.waypoints for v in at[k - 1].values()) \
+                or any(not _same_variable(v, at[k][key]) for key, v in at[k - 1].items() if key in at[k]):
+            continue
+        yield set(crossing), k
 
 
 def _steps(f: FactorInstance) -> set[int]:
@@ -156,35 +260,38 @@ def _shift(f: FactorInstance, by: int) -> FactorInstance:
     return replace(f, step=f.step + by, variables=tuple(replace(v, step=v.step + by) for v in f.variables))
 
 
-def stretched(factors: Sequence[FactorInstance], max_length: int, limit: int = LIMIT) -> list[Conflict]:
-    """The conflict of `factors`, then that of M contracted (`contracted`) and its stretched
-    instances (module docstring), each at most `max_length` partial states long, fewest
-    inserted steps first, at most `limit` in all (duplicates counted once)."""
+def stretched(factors: Sequence[FactorInstance], max_length: int, limit: int = LIMIT,
+              preorder: bool = False) -> list[Conflict]:
+    """The conflict of `factors`, then the instances of M contracted (`contracted`), with its
+    runs shortened (`merged`) and stretched (module docstring): each at most `max_length`
+    partial states long, shortest first, at most `limit` in all (duplicates counted once).
+    `preorder`: PREORDER transitions are chain links too."""
     out = [to_partial_states(factors)]
-    factors = contracted(factors)
-    seq = to_partial_states(factors)
-    if seq not in out:
-        out.append(seq)
-    bridge = bridges(factors)
-    spots = [j for j, b in enumerate(bridge) if b is not None]
-    if not spots:
-        return out
     seen = set(out)
-    for extra in range(1, max_length - len(seq) + 1):
-        for counts in _compositions(extra, len(spots)):
-            inserted = dict(zip(spots, counts))
-            inst: list[PartialState] = []
-            for j, p in enumerate(seq):
-                inst.append(p)
-                if j in inserted:
-                    inst.extend([bridge[j]] * inserted[j])
-            inst_t = tuple(inst)
-            if inst_t in seen:
+    shapes = []
+    for m in merged(contracted(factors, preorder), preorder):
+        seq = to_partial_states(m)
+        bridge = bridges(m, preorder)
+        shapes.append((seq, bridge, [j for j, b in enumerate(bridge) if b is not None]))
+    for length in range(min(len(seq) for seq, _, _ in shapes), max_length + 1):
+        for seq, bridge, spots in shapes:
+            extra = length - len(seq)
+            if extra < 0 or (extra and not spots):
                 continue
-            seen.add(inst_t)
-            out.append(inst_t)
-            if len(out) >= limit:
-                return out
+            for counts in _compositions(extra, len(spots)) if spots else [()]:
+                inserted = dict(zip(spots, counts))
+                inst: list[PartialState] = []
+                for j, p in enumerate(seq):
+                    inst.append(p)
+                    if j in inserted:
+                        inst.extend([bridge[j]] * inserted[j])
+                inst_t = tuple(inst)
+                if inst_t in seen:
+                    continue
+                seen.add(inst_t)
+                out.append(inst_t)
+                if len(out) >= limit:
+                    return out
     return out
 
 

@@ -487,8 +487,8 @@ class SolverSettings:
                 gnpp: a conflict also forbids its copies with steps inserted or removed where its
                 subgraph relates consecutive steps only by chain equalities (`gnppdsl.conflicts.interleave`)
     stretch_conflicts
-                gnpp: a conflict whose partial states repeat also forbids the repeats held for any
-                number of steps (`gnppdsl.conflicts.stretch`)
+                gnpp, with interleave_conflicts: `preorder`-tagged transitions (a push held over
+                several steps) count as chain links too (`gnppdsl.conflicts.interleave`)
     """
 
     algorithm: str = "gnpp"

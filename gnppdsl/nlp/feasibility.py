@@ -44,7 +44,7 @@ from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody, mapped_inputs 
 from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 from gnppdsl.nlp import shape_cache
-from gnppdsl.nlp.monitor import IterationMonitor as _Monitor, raise_on_nan as _raise_on_nan
+from gnppdsl.nlp.monitor import START_HELD, IterationMonitor as _Monitor, raise_on_nan as _raise_on_nan
 from gnppdsl.nlp.solver_options import KINEMATIC_CURVATURE_MODES, CurvatureTrials, SolverOptions  # noqa: F401
 
 
@@ -719,6 +719,9 @@ class FeasibilitySolver:
                              lbg=a.lbg, ubg=a.ubg)
             else:
                 z0 = np.nan_to_num(elastic_point(a, x0), nan=1.0, posinf=1e3, neginf=-1e3)
+                quats = [z0[o + q.start:o + q.stop] for v, o in zip(a.variables, a.offsets) for q in _quat_slices(v)]
+                if a.monitor is not None and a.monitor.start_holds(z0, quats):
+                    return x0.copy(), float(np.sum(z0[a.n_x:])), 0, START_HELD, None     # ipopt not run
                 # the slacks of z0 are the start's violations (`elastic_point`)
                 near = z0.size == a.n_x or float(z0[a.n_x:].max()) <= self.options.near_start_below
                 solver = (self._near(a) if near else None) or a.solver

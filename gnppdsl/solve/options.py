@@ -107,11 +107,12 @@ class SolveOptions:
                                      # factors, 45 per keyframe, and its per-arm reach conflicts are
                                      # one loop iteration each without the batch: work1 9 -> 3
                                      # plans, 12.1 -> 5.7 s CPU; planar keyframes have 3-15)
-    stretch_conflicts: bool = False  # gnpp: a conflict whose partial states repeat is learned with the
-                                     # repeats held for any number of steps when its subgraph ties them
-                                     # by equalities or preorders (`gnppdsl.conflicts.stretch`). Off:
-                                     # work3 8 -> 6 plans (34.4 -> 27.6-29.3 s CPU), but on work5 the
-                                     # 217 stretched instances made clingo's calls 2.5 -> 155 s CPU
+    stretch_conflicts: bool = False  # gnpp, with interleave_conflicts: transitions of `preorder`-tagged
+                                     # templates (tools.push_motion) are chain links too, so a push held
+                                     # over several steps is learned for every length
+                                     # (`gnppdsl.conflicts.interleave`, "Preorder chains"). Off: work3
+                                     # 8 -> 6 plans (34.4 -> 27.6-29.3 s CPU), but on work5 the 217
+                                     # stretched instances made clingo's calls 2.5 -> 155 s CPU
     minimise_conflicts: bool = False  # gnpp: drop every fact of a conflict whose factors the
                                      # infeasibility does not need (`gnppdsl.conflicts.minimise`,
                                      # one NLP with restarts per fact)

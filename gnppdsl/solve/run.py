@@ -213,10 +213,9 @@ class Run(ReachabilityCosts):
             t1, c1 = time.perf_counter(), _cpu()
             batched = self.batch(plan, sub_factors, instances)
             t0, c0 = t0 + time.perf_counter() - t1, c0 + _cpu() - c1
-        stretched = self.stretched(sub_factors, seq, instances + batched)
-        interleaved = self.interleaved(instances + batched + stretched)
+        interleaved = self.interleaved(instances + batched)
         known = seq in set(self.planner.conflicts)
-        new = self.planner.add_lifted(instances + batched + stretched + interleaved)
+        new = self.planner.add_lifted(instances + batched + interleaved)
         if known or not new:
             # the planner already forbids it, yet proposed this plan: never loop forever
             self.planner.block_plan(plan)
@@ -234,28 +233,14 @@ class Run(ReachabilityCosts):
         self.stats.interleaved_instances += len(interleaved)
         lifted = f" (+{len(others)} symmetric instances)" if others else ""
         lifted += f" (+{len(batched)} batch-learned)" if batched else ""
-        lifted += f" (+{len(stretched)} stretched)" if stretched else ""
         lifted += f" (+{len(interleaved)} interleaved)" if interleaved else ""
         self.say(f"  conflict ({source}{', ' + relaxation if relaxation else ''}): {c.text}{lifted}")
-
-    def stretched(self, sub_factors: Sequence[FactorInstance], seq, instances: Sequence) -> list:
-        """The instances with their runs of repeated partial states held for any other number
-        of steps (`gnppdsl.conflicts.stretch`: sound when M ties the run's steps by equalities
-        only), up to the plan length the planner may reach (`max_horizon` actions)."""
-        from gnppdsl.conflicts.stretch import stretchable_runs, stretched
-
-        if not self.options.stretch_conflicts:
-            return []
-        runs = stretchable_runs(sub_factors, seq)
-        out: list = []
-        for inst in instances if runs else ():
-            out += [s for s in stretched(inst, runs, self.options.max_horizon + 1) if s not in out]
-        return out
 
     def interleaved(self, seqs: Sequence) -> list:
         """The interleaved instances (`gnppdsl.conflicts.interleave`) of the conflicts `seqs` whose
         factors are known (`self.images`), up to the planner's horizon; none already in `seqs`
-        or forbidden by the planner."""
+        or forbidden by the planner. Option stretch_conflicts: `preorder` templates count as
+        chain links too."""
         if not self.options.interleave_conflicts:
             return []
         from gnppdsl.conflicts.interleave import stretched
@@ -266,7 +251,8 @@ class Run(ReachabilityCosts):
             factors = self.images.get(s)
             if factors is None:
                 continue
-            for inst in stretched(factors, self.options.max_horizon + 1)[1:]:
+            for inst in stretched(factors, self.options.max_horizon + 1,
+                                  preorder=bool(self.options.stretch_conflicts))[1:]:
                 if inst not in have:
                     have.add(inst)
                     out.append(inst)

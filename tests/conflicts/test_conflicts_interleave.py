@@ -17,7 +17,7 @@ import pytest
 
 from gnppdsl.compile.semantics import successor
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
-from gnppdsl.conflicts.interleave import bridges, chain_equality, contracted, stretched
+from gnppdsl.conflicts.interleave import bridges, chain_equality, contracted, merged, stretched
 from gnppdsl.logic.validate import find_sequence
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
@@ -84,6 +84,9 @@ def test_contraction_and_stretching_of_a_parked_base(field4):
         ["{not driving(mm)}", "{not driving(mm)}", None, "{not driving(mm)}", None]
     short = to_partial_states(contracted(M))
     assert len(short) == len(seq) - 1            # step 1 passes the base on and nothing else
+    # steps 3 and 4 (o1 held, the base parked) are equal and tied only by the parked chain:
+    # they merge (the pick right before the place), besides the unmerged one
+    assert [len(to_partial_states(m)) for m in merged(contracted(M))] == [len(seq) - 1, len(seq) - 2]
     assert conflict_str(task, short).startswith("{not driving(mm), initial} -> {parent(o1) = site_a")
     out = stretched(M, max_length=12)
     assert out[0] == seq and short in out and len(set(out)) == len(out)

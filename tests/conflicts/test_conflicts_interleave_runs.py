@@ -1,5 +1,9 @@
-"""Stretched conflicts (`gnppdsl.conflicts.stretch`): which runs of repeated partial states a
-conflict may hold for any number of steps, and the sequences it then forbids."""
+"""Runs of equal partial states in a conflict (`gnppdsl.conflicts.interleave`, "Merging" and
+"Preorder chains"): which adjacent steps merge, and the sequences the conflict then forbids.
+
+Oracle: the conflict the same situation maps to when it is held for fewer or more steps
+(`to_partial_states` of hand-made factors), independent of the merging code; a stretched
+instance must forbid it (each of its partial states a subset of the situation's)."""
 from __future__ import annotations
 
 import sys
@@ -11,8 +15,8 @@ from conflicts_fixture_factors import HOLDING, PARENT_B1, at_spot, grasp, q, sam
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance  # noqa: E402
 from gnppdsl.compile.sas import PartialState  # noqa: E402
+from gnppdsl.conflicts.interleave import LIMIT, merged, stretched  # noqa: E402
 from gnppdsl.conflicts.mapping import to_partial_states  # noqa: E402
-from gnppdsl.conflicts.stretch import stretchable_runs, stretched  # noqa: E402
 from gnppdsl.ir.expr import Call, Constraint, Num, Slot  # noqa: E402
 
 B = PartialState.of({PARENT_B1: 2, HOLDING: 1})
@@ -37,44 +41,50 @@ def _step_limit(step: int) -> FactorInstance:
         body=(Constraint(Call("norm", (Call("sub", (Slot(0), Slot(1))),)), "<=", Num(0.1)),))
 
 
-def test_a_run_tied_by_equalities_is_stretched_to_every_length_that_fits():
+def _forbids(instance, situation) -> bool:
+    """Would the conflict `instance` forbid a plan whose states are `situation`'s (same length,
+    each partial state of the instance within the situation's)?"""
+    return len(instance) == len(situation) and all(set(a.facts) <= set(b.facts) for a, b in zip(instance, situation))
+
+
+def test_a_run_tied_by_equalities_merges_to_one_step_and_is_learned_for_every_length_that_fits():
     fs = _held_for(3)
     seq = to_partial_states(fs)
     assert seq[1] == seq[2] == seq[3] == B and len(seq) == 5
-    runs = stretchable_runs(fs, seq)
-    assert runs == [(1, 3)]
-    out = stretched(seq, runs, max_length=8)
-    # the run held 1, 2, 4, 5, 6 steps (3 is the conflict itself; 7 would be 9 states long)
-    assert sorted(len(s) for s in out) == [3, 4, 6, 7, 8]
-    for s in out:
-        assert s[0] == seq[0] and s[-1] == seq[-1] and set(s[1:-1]) == {B}
-    # each is what the same situation held that long maps to
-    assert to_partial_states(_held_for(1)) in out and to_partial_states(_held_for(5)) in out
+    shapes = [to_partial_states(m) for m in merged(fs)]
+    assert shapes == [seq, to_partial_states(_held_for(2)), to_partial_states(_held_for(1))]
+    out = stretched(fs, max_length=8)
+    assert out[0] == seq
+    for n in range(1, 7):            # 7 would be 9 states long
+        situation = to_partial_states(_held_for(n))
+        assert any(_forbids(s, situation) for s in out), n
+    assert all(len(s) <= 8 for s in out)
 
 
-def test_a_run_with_another_factor_between_its_steps_is_not_stretched():
+def test_a_run_with_another_factor_between_its_steps_is_not_merged():
     # a bounded move per step: three steps reach 0.2 where one reaches nothing (not sound)
     fs = _held_for(3) + [_step_limit(1), _step_limit(2)]
-    assert stretchable_runs(fs, to_partial_states(fs)) == []
+    assert merged(fs) == [tuple(fs)]
+    shorter = to_partial_states(_held_for(1))
+    assert not any(_forbids(s, shorter) for s in stretched(fs, max_length=8))
 
 
-def test_a_conflict_with_a_trajectory_or_without_a_run_is_not_stretched():
+def test_steps_with_a_trajectory_between_them_are_not_merged():
     fs = _held_for(3)
     path = VarInstance("path", ("g",), 1, "SE2", 30, frozenset({"traj"}), waypoints=10)
     traj = FactorInstance(template="planar.path", rule="motion", bindings=(), tags=frozenset({"traj"}), step=1,
                           span=1, generator=(B,), variables=(path,),
                           body=(Constraint(Call("norm", (Slot(0),)), "<=", Num(1.0)),))
-    assert stretchable_runs(fs + [traj], to_partial_states(fs + [traj])) == []
+    # steps 1 and 2 stay apart (the motion from step 1 is part of M); 2 and 3 merge
+    shapes = merged(fs + [traj])
+    assert [len(to_partial_states(m)) for m in shapes] == [5, 4]
+    assert any(v.waypoints and v.step == 1 for f in shapes[-1] for v in f.variables)
+
+
+def test_unequal_adjacent_states_are_not_merged_and_the_count_is_capped():
     one = _held_for(1)
-    assert stretchable_runs(one, to_partial_states(one)) == []
-
-
-def test_an_instance_whose_run_is_broken_is_not_stretched_and_the_count_is_capped():
-    seq = to_partial_states(_held_for(3))
-    broken = (seq[0], seq[1], PartialState.of({PARENT_B1: 1}), seq[3], seq[4])
-    assert stretched(broken, [(1, 3)], 10) == []
-    from gnppdsl.conflicts.stretch import MAX_VARIANTS
-    assert len(stretched(seq, [(1, 3)], 1000)) == MAX_VARIANTS
+    assert merged(one) == [tuple(one)]
+    assert len(stretched(_held_for(3), 1000)) == LIMIT
 
 
 # ---- the standard library's preorder: tools.push_motion ---------------------------------------------
@@ -87,16 +97,16 @@ def _se3_mul(a, b):
     return list(pin.SE3ToXYZQUAT(m(a) * m(b)))
 
 
-def test_push_motion_is_reflexive_and_transitive_and_its_run_is_stretched():
+def test_push_motion_is_reflexive_and_transitive_and_a_preorder_link():
     """The claim behind its `preorder` tag, at random poses: b1 riding on the stick arm_s holds
     (arm and stick fixed, b1's pose on the stick moved): no move holds, two forward pushes at the
-    table's height hold and so does their sum, a push backwards does not. And a Workshop
-    conflict's run of pushes (Work_2, a block on the stick for two steps) is stretchable."""
+    table's height hold and so does their sum, a push backwards does not. Its Work_2 factor is
+    a chain link only when preorders are asked for (`stretch_conflicts`)."""
     import numpy as np
 
     import gnppdsl.ir as ir
     from gnppdsl.compile.semantics import parse_plan, plan_states
-    from gnppdsl.conflicts.stretch import _preorder
+    from gnppdsl.conflicts.interleave import chain_link, preorder_link
     from gnppdsl.nlp.evaluate import max_violation
     from gnppdsl.solve.compiled import compile_problem
 
@@ -106,7 +116,8 @@ def test_push_motion_is_reflexive_and_transitive_and_its_run_is_stretched():
             "take(b1, arm_n, stick); put(b1, arm_n, pad_n); put(b2, arm_w, pad_w)")
     factors = c.factory.factors(plan_states(c.task, parse_plan(c.task, plan)))
     (f,) = [f for f in factors if f.template == "tools.push_motion" and f.step == 2]
-    assert _preorder(f) and {v.key for v in f.variables} == {"q(arm_s)", "pose(stick)", "pose(b1)"}
+    assert preorder_link(f) and {v.key for v in f.variables} == {"q(arm_s)", "pose(stick)", "pose(b1)"}
+    assert chain_link(f, preorder=True) and not chain_link(f, preorder=False)
     rng = np.random.default_rng(0)
     q = rng.uniform(-1, 1, 7)
     for _ in range(5):
