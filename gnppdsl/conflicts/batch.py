@@ -24,6 +24,13 @@ contains π(M); π(M) was found infeasible by an NLP, as every conflict of the l
 assumed about symmetry: a renaming onto a reachable block, a free pad or the other arm gives a
 feasible NLP, and is not learned (its verdict is cached, so the next conflict does not solve
 it again; a feasible verdict is also recorded in the subgraph database with switch g).
+
+Screen: a renaming often gives partial states no plan reaches -- on field4, renaming o1 onto o2
+gives `{parent(o2) = site_a, not moved(o2)}` although o2 starts at station_s, and renaming the
+place gives `{parent(o1) = station_n, not moved(o1)}`. Learning such a conflict forbids nothing,
+yet each cost an NLP (140 of field4's 218 candidates). `Reachable` drops a candidate one of
+whose partial states holds a fact or a pair of facts that h^2 (`gnppdsl.logic.mutex`) never
+reaches: no NLP, nothing learned (learning less never breaks Prop. 7.1).
 """
 from __future__ import annotations
 
@@ -32,8 +39,10 @@ import re
 from dataclasses import dataclass, field
 from typing import Iterator, Sequence
 
+import numpy as np
+
 from gnppdsl.compile.factors import FactorInstance
-from gnppdsl.compile.sas import PartialState
+from gnppdsl.compile.sas import PartialState, SASTask
 from gnppdsl.conflicts.lifting import Lifter, State, parse_name
 from gnppdsl.conflicts.mapping import to_partial_states
 
@@ -52,6 +61,7 @@ class BatchStats:
     candidates: int = 0          # renamed subgraphs solved (one NLP each, with restarts)
     learned: int = 0             # ... of which infeasible: learned with the conflict
     cached: int = 0              # renamed subgraphs decided without an NLP (cache, database)
+    unreachable: int = 0         # renamed subgraphs no plan reaches (`Reachable`): dropped
     time: float = 0.0            # seconds building and solving them
 
 
@@ -64,6 +74,25 @@ class Candidate:
     key: tuple                                    # identity of π(M) for the cache
 
 
+class Reachable:
+    """Can a plan's states hold these partial states? False when one of them holds a fact or a
+    pair of facts that h^2 never reaches (`gnppdsl.logic.mutex.h2_matrix`, an over-approximation
+    of the reachable states: True is no promise). Derived facts are not tested."""
+
+    def __init__(self, task: SASTask) -> None:
+        from gnppdsl.logic.mutex import h2_matrix
+
+        facts, _, self.R = h2_matrix(task)
+        self.index = {f: i for i, f in enumerate(facts)}
+
+    def state(self, p: PartialState) -> bool:
+        idx = [self.index[f] for f in p.facts if f in self.index]
+        return bool(self.R[np.ix_(idx, idx)].all()) if idx else True
+
+    def __call__(self, seq: Sequence[PartialState]) -> bool:
+        return all(self.state(p) for p in seq)
+
+
 @dataclass
 class Batcher:
     """The renamed candidates of conflicts in one compiled problem (see the module docstring)."""
@@ -72,6 +101,7 @@ class Batcher:
     budget: int = BUDGET
     stats: BatchStats = field(default_factory=BatchStats)
     verdicts: dict = field(default_factory=dict)  # Candidate.key -> feasible (bool)
+    reachable: Reachable | None = None            # the screen (None: every candidate is solved)
 
     def candidates(self, states: Sequence[State], factors: Sequence[FactorInstance],
                    plan_names: Sequence[str] = (), lifted: dict | None = None) -> Iterator[Candidate]:
@@ -115,6 +145,9 @@ class Batcher:
             seq = to_partial_states(image)
             if not any(p.facts for p in seq):
                 continue                          # a sweeping claim: never from a batch
+            if self.reachable is not None and not self.reachable(seq):
+                self.stats.unreachable += 1
+                continue                          # no plan holds it: nothing to learn
             key = (seq, frozenset((f.rule, f.template, f.bindings, f.step) for f in image))
             yield Candidate(mapping, tuple(image), tuple(renamed), seq, key)
 

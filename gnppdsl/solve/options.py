@@ -102,6 +102,11 @@ class SolveOptions:
                                      # NLP, a loop iteration the whole graph's; on the planar
                                      # problems (17-120 factors) the batch only added NLPs (p6
                                      # 10 -> 23), on the Lab families (900+) it saves iterations
+    batch_min_keyframe_factors: int = 20  # ... or at least this many factors per keyframe (the
+                                     # robot's keyframes are heavy: a 2-action Workshop plan has 136
+                                     # factors, 45 per keyframe, and its per-arm reach conflicts are
+                                     # one loop iteration each without the batch: work1 9 -> 3
+                                     # plans, 12.1 -> 5.7 s CPU; planar keyframes have 3-15)
     stretch_conflicts: bool = False  # gnpp, with interleave_conflicts: transitions of `preorder`-tagged
                                      # templates (tools.push_motion) are chain links too, so a push held
                                      # over several steps is learned for every length

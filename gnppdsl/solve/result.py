@@ -120,6 +120,7 @@ class Stats:
     batch_candidates: int = 0         # renamed conflicts decided by an NLP (`conflicts.batch`)
     batch_learned: int = 0            # ... found infeasible, learned with their conflict
     batch_cached: int = 0             # renamed conflicts decided without an NLP (earlier verdict, database)
+    batch_unreachable: int = 0        # renamed conflicts no plan reaches (h^2): dropped, no NLP
     batch_time: float = 0.0           # seconds building and solving them
     minimise_checks: int = 0          # NLPs of the fact minimisation (`conflicts.minimise`)
     minimise_time: float = 0.0        # seconds in it

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.conflicts.batch import Batcher, subsumed
+from gnppdsl.conflicts.batch import Batcher, Reachable, subsumed
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
 from gnppdsl.conflicts.lifting import Lifter
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
@@ -84,11 +84,12 @@ class Run(ReachabilityCosts):
             self.lifter = Lifter(compiled.factory, self.task, compiled.problem.objects, compiled.object_key)
         self.batcher: Batcher | None = None
         self.graph_factors = 0            # factors of the last plan's graph-NLP (`build_graph`)
+        self.graph_keyframes = 1          # ... and its keyframes (states)
         self.last_optimum = None          # (plan names, values) of the last accepted optimisation phase
         if options.batch_conflicts > 0 and options.algorithm != "oneway" and compiled.object_key is not None:
             self.batcher = Batcher(self.lifter or Lifter(compiled.factory, self.task, compiled.problem.objects,
                                                          compiled.object_key),
-                                   options.batch_conflicts)
+                                   options.batch_conflicts, reachable=Reachable(self.task))
 
     def say(self, msg: str) -> None:
         if self.progress is not None:
@@ -120,7 +121,8 @@ class Run(ReachabilityCosts):
         graph = plan_graph(self.compiled.factory, states)
         self.reach_keyframe_starts(graph, states)
         self.stats.factory_time += time.perf_counter() - t0
-        self.graph_factors = graph.n_factors       # the batch's gate (`batch_min_factors`)
+        self.graph_factors = graph.n_factors       # the batch's gate (`batch_min_factors`,
+        self.graph_keyframes = len(states)         # `batch_min_keyframe_factors`)
         return graph
 
     def next_plan(self, enumerate_: bool) -> PlanResult:
@@ -205,7 +207,9 @@ class Run(ReachabilityCosts):
             self.images.update(self.lifter.images)
             self.stats.lift_time += time.perf_counter() - t0
         batched: list = []
-        if self.batcher is not None and self.graph_factors >= self.options.batch_min_factors:
+        if self.batcher is not None and (
+                self.graph_factors >= self.options.batch_min_factors
+                or self.graph_factors >= self.options.batch_min_keyframe_factors * self.graph_keyframes):
             # NLPs, not logic: left out of logic_time / logic_cpu (its own batch_time)
             t1, c1 = time.perf_counter(), _cpu()
             batched = self.batch(plan, sub_factors, instances)
@@ -306,6 +310,7 @@ class Run(ReachabilityCosts):
             stats.learned += len(out)
             self.stats.batch_candidates, self.stats.batch_learned = stats.candidates, stats.learned
             self.stats.batch_cached, self.stats.batch_time = stats.cached, stats.time
+            self.stats.batch_unreachable = stats.unreachable
         return out
 
     def result(self, status: str, message: str, **kw: Any) -> Result:

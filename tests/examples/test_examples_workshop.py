@@ -312,3 +312,23 @@ def test_the_active_set_leaves_a_pushed_blocks_sliding_contact_with_the_table_to
     rep = SolutionReport(ok=False, near=list(near), riding={(0, "b1"): ("table",), (1, "b1"): ()})
     assert near_pairs(result, rep) == [near[2], near[3], near[4]]
     assert near_pairs(result, SolutionReport(ok=False, near=list(near))) == near
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not os.environ.get("GNPP_SLOW"), reason="slow end-to-end test (GNPP_SLOW=1)")
+def test_work1_learns_the_reach_of_every_arm_from_one_plan(work1_solved):
+    """b1 lies out of every hand's reach (the IK oracle above). The first conflict about picking
+    it from the table (a 2-action plan's graph: 136 factors, below `batch_min_factors` but above
+    `batch_min_keyframe_factors` per keyframe) brings the other three arms with it as
+    batch-learned instances, instead of one arm per plan; the stick, which arm_s reaches, is
+    never forbidden to arm_s."""
+    _, r = work1_solved
+    assert r.status == "solved", r.message
+    for arm in ARMS:
+        assert _ik_error(arm, _xyz(SCENE, "b1"), top=False) > 0.05, arm
+    first = next(c for c in r.conflicts if c.text.startswith("{parent(b1) = table, not moved(b1)} -> {parent(b1) = arm_"))
+    named = {a for t in (first.text, *first.instances, *first.batched) for a in ARMS if f"= {a}}}" in t}
+    assert named == set(ARMS), (first.text, first.batched)
+    learned = [t for c in r.conflicts for t in (c.text, *c.instances, *c.batched)]
+    assert "{parent(stick) = table, not moved(stick)} -> {parent(stick) = arm_s}" not in learned
+    assert r.plan[0] == "pick(stick, arm_s, table)"

@@ -256,6 +256,11 @@ def test_world_pose_expr_matches_the_solution():
     assert np.allclose(world("b1", 1)[:2], expected, atol=1e-9)
     with pytest.raises(IndexError):
         c.factory.world_pose_expr("b1", states, len(states))
+    # the factory keeps the derived states of the last plan asked: another plan is derived anew
+    # (its step 1 does not exist: the one-state plan, asked right after the whole one)
+    with pytest.raises(IndexError):
+        c.factory.world_pose_expr("b1", states[:1], 1)
+    assert np.allclose(world("b1", 1)[:2], expected, atol=1e-9)
 
 
 def _first_plan_graph(run):
