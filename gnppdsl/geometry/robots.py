@@ -14,6 +14,7 @@ the bundled arms (Panda, UR) the two coincide (nc == nq).
 from __future__ import annotations
 
 import functools
+import functools
 import math
 import os
 from dataclasses import dataclass, field
@@ -107,15 +108,36 @@ class RobotModel:
                 c[j.idx_c:j.idx_c + j.nc] = v
         return c
 
+    @functools.cached_property
+    def angle_mask(self) -> np.ndarray:
+        """Which planner coordinates are angles on the circle (continuous joints, a planar
+        joint's heading): q and q + 2*pi*k are the same configuration there."""
+        m = np.zeros(self.nc, dtype=bool)
+        for j in self.coords:
+            if j.kind == "revolute_unbounded":
+                m[j.idx_c] = True
+            elif j.kind == "planar":
+                m[j.idx_c + 2] = True
+        return m
+
+    def coord_difference(self, q1, q2) -> np.ndarray:
+        """q2 - q1 (rows broadcast), angles the short way round: wrapped into (-pi, pi]."""
+        d = np.asarray(q2, dtype=float) - np.asarray(q1, dtype=float)
+        m = self.angle_mask
+        if m.any():
+            d = d.copy()
+            a = d[..., m]
+            d[..., m] = a - 2 * math.pi * np.ceil((a - math.pi) / (2 * math.pi))
+        return d
+
     def random_coords(self, rng: np.random.Generator) -> np.ndarray:
         """Uniform in the limits; unbounded angles in [-pi, pi], unbounded translations in [-1, 1]."""
         lo = self.lower.copy()
         hi = self.upper.copy()
-        for j in self.coords:
-            for k in range(j.idx_c, j.idx_c + j.nc):
-                if not np.isfinite(lo[k]) or not np.isfinite(hi[k]):
-                    ang = j.kind in ("revolute_unbounded",) or (j.kind == "planar" and k == j.idx_c + 2)
-                    lo[k], hi[k] = (-math.pi, math.pi) if ang else (-1.0, 1.0)
+        ang = self.angle_mask
+        for k in range(self.nc):
+            if not np.isfinite(lo[k]) or not np.isfinite(hi[k]):
+                lo[k], hi[k] = (-math.pi, math.pi) if ang[k] else (-1.0, 1.0)
         c = rng.uniform(lo, hi)
         for j in self.coords:   # quaternion coordinates must be unit
             if j.kind in ("free", "spherical"):

@@ -232,12 +232,15 @@ class CollisionChecker:
 
     def segment_configs(self, q1, q2, steps: int, max_step: float) -> np.ndarray:
         """Interior configurations of the straight joint-space segment q1 -> q2 that an edge
-        check visits: at least `steps`, more if a coordinate would move more than `max_step`."""
+        check visits: at least `steps`, more if a coordinate would move more than `max_step`.
+        Angles (continuous joints, a planar heading: `RobotModel.angle_mask`) turn the short
+        way round, as the graph's edge costs measure them (`RobotModel.coord_difference`)."""
         q1, q2 = np.asarray(q1, dtype=float), np.asarray(q2, dtype=float)
-        span = float(np.max(np.abs(q2 - q1))) if q1.size else 0.0
+        d = self.robot.coord_difference(q1, q2)
+        span = float(np.max(np.abs(d))) if q1.size else 0.0
         n = max(int(steps), int(np.ceil(span / max_step)) - 1 if max_step > 0 else 0)
         t = np.linspace(0.0, 1.0, n + 2)[1:-1]
-        return q1[None, :] + t[:, None] * (q2 - q1)[None, :]
+        return q1[None, :] + t[:, None] * d[None, :]
 
     def segment_free(self, q1, q2, steps: int, max_step: float) -> bool:
         """Lazy edge check: every interpolated configuration is free (endpoints are nodes,

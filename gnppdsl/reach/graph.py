@@ -216,10 +216,12 @@ class ReachabilityGraph:
         return out
 
     def edge_cost(self, u: int, v: int) -> float:
-        """Eq. 3."""
+        """Eq. 3; |q1 - q2| takes angles the short way round (`RobotModel.coord_difference`),
+        as the edge check interpolates them."""
         a, b = self.G.nodes[u], self.G.nodes[v]
         wx, wq, wc = self.settings.weights
-        return float(wx * np.linalg.norm(a["x"] - b["x"]) + wq * np.linalg.norm(a["q"] - b["q"])
+        return float(wx * np.linalg.norm(a["x"] - b["x"])
+                     + wq * np.linalg.norm(self.robot.coord_difference(a["q"], b["q"]))
                      + wc * (a["c"] + b["c"]))
 
     def _connect(self, u: int, check: bool) -> int:

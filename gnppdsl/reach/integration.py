@@ -9,7 +9,7 @@ solve loop's owner.
   of consecutive operators, for `SASTask.pair_costs`, so the clingo planner's optimal plans
   prefer short end-effector travel.
 - `warmstart_waypoints(graph, q_start, q_goal, n)`: Alg. 1's getWaypoints, the graph path
-  resampled to a trajectory's waypoint count.
+  resampled to a trajectory's waypoint count, angles unwrapped (`unwrap_waypoints`).
 
 Why pair costs: the travel of an action depends on where the end effector was after the
 previous action, i.e. on the pair (previous operator, operator); `SASTask.pair_costs` carries
@@ -201,5 +201,30 @@ def graph_waypoints(graph: ReachabilityGraph, q_start, q_goal, n_waypoints: int)
     qb = np.asarray(q_goal, dtype=float).ravel()
     sol = graph.query_configs(qa, qb)
     used = math.isfinite(sol.cost) and len(sol.path) > 0
-    pts = sol.path if used else np.vstack([qa, qb])
-    return resample_polyline(pts, int(n_waypoints)), bool(used)
+    if not used:
+        return resample_polyline(np.vstack([qa, qb]), int(n_waypoints)), False
+    return unwrap_waypoints(graph.robot, sol.path, qa, qb, int(n_waypoints)), True
+
+
+def unwrap_waypoints(robot, path, q_start, q_goal, n_waypoints: int) -> np.ndarray:
+    """A graph path as n_waypoints trajectory rows from q_start to q_goal, angles continuous.
+
+    Graph nodes hold angles (continuous joints, a planar heading: `RobotModel.angle_mask`) as
+    IK left them, anywhere in R, and edges turn the short way round. So the path is unwrapped
+    from q_start: each waypoint is the previous one plus the short difference
+    (`RobotModel.coord_difference`). The unwrapped end can differ from q_goal's own angles by
+    2*pi*k (a keyframe's angle is a number too, not only a point of the circle); that
+    remainder is spread linearly over the rows, so the path stays continuous and its last row
+    is exactly q_goal (the `boundary` template: path[n-1] = q')."""
+    qa = np.asarray(q_start, dtype=float).ravel()
+    qb = np.asarray(q_goal, dtype=float).ravel()
+    pts = np.asarray(path, dtype=float).reshape(len(path), -1)
+    steps = robot.coord_difference(np.vstack([qa, pts[:-1]]), pts)      # row 0: qa -> the first node
+    unwrapped = qa[None, :] + np.cumsum(steps, axis=0)
+    out = resample_polyline(unwrapped, n_waypoints)
+    rest = qb - unwrapped[-1]
+    out = out + np.linspace(0.0, 1.0, len(out))[:, None] * rest[None, :] if len(out) > 1 else out
+    out[0] = qa
+    if len(out) > 1:
+        out[-1] = qb
+    return out

@@ -25,7 +25,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-FORMAT = 1
+FORMAT = 2     # 2: edges turn angles the short way round (a format-1 store predates that)
 
 
 def default_directory() -> Path | None:
