@@ -122,10 +122,21 @@ class GraphNLPFactory:
         self.obj_order = {name: k for k, name in enumerate(problem.objects)}
         self._vars: dict[tuple, VarInstance] = {}
         self._memo: tuple | None = None        # last (states, factors): variables() reuses it
-        self._derived: tuple | None = None     # last (states, derived states): world_pose_expr
+        self._derived: tuple | None = None     # last (states, derived states): derived_states
         self._cache: dict[tuple, list] = {}     # see _cached_instance
 
     # ---- public API --------------------------------------------------------------------
+    def derived_states(self, states: Sequence[Sequence[int]]) -> tuple:
+        """The plan's states with every derived variable computed (`derive`), kept for the last
+        `states` asked. Why: its callers ask for one plan again and again -- `world_pose_expr`
+        for every object at every step (3.1 s CPU of clutter_6's report: 300 calls over 25
+        states), the active set's `pair_factor` for every near pair (lab5_paper: 1282 factors
+        over 19 states, 18 s of a profile)."""
+        key = tuple(tuple(s) for s in states)
+        if self._derived is None or self._derived[0] != key:
+            self._derived = (key, tuple(derive(self.task, s) for s in key))
+        return self._derived[1]
+
     def factors(self, states: Sequence[Sequence[int]]) -> list[FactorInstance]:
         """Factor instances of the graph-NLP G(<s_0 ... s_n>), step by step, rules in
         declaration order, bindings in object order, calls in written order."""
@@ -158,13 +169,8 @@ class GraphNLPFactory:
         variable instance (the form of a factor body). Objects without a frame give their
         constant scene pose and no variables. Raises a compile error when the chain cannot be
         expanded (e.g. a cycle). Used to draw keyframes and to report poses of solutions.
-        (The derived states of the last `states` are kept: a caller asks for every object at
-        every step of one plan, and deriving all states per call was 3.1 s CPU of clutter_6's
-        report, 300 calls over 25 states.)"""
-        key = tuple(tuple(s) for s in states)
-        if self._derived is None or self._derived[0] != key:
-            self._derived = (key, tuple(derive(self.task, s) for s in key))
-        full = self._derived[1]
+        """
+        full = self.derived_states(states)
         if not 0 <= step < len(full):
             raise IndexError(f"step {step} outside the {len(full)} states")
         acc = _Factor()

@@ -15,13 +15,12 @@ from typing import Sequence
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.compile.factory import GraphNLPFactory, _compact_slots, _Ctx, _Factor, _Skip
 from gnppdsl.compile.sas import PartialState
-from gnppdsl.compile.semantics import derive
 from gnppdsl.ir.expr import Call, Constraint, CVar, Index, Num, Obj, Str, Vec
 
 
 def pair_factor(factory: GraphNLPFactory, states: Sequence[Sequence[int]], step: int, a: str | tuple[str, str],
                 b: str | tuple[str, str], margin: float, waypoint: float | None = None,
-                rule: str = "avoid", derived: Sequence | None = None) -> FactorInstance | None:
+                rule: str = "avoid") -> FactorInstance | None:
     """One collision-avoidance factor `sdist(a, b) >= margin` at keyframe `step`, or along
     the motion s_step -> s_step+1 at `waypoint` k (every robot at `path(r)[k]`; k + 0.5:
     the midpoint of waypoints k and k+1, what a consumer replaying the motion linearly
@@ -31,10 +30,9 @@ def pair_factor(factory: GraphNLPFactory, states: Sequence[Sequence[int]], step:
     partial state), so conflicts with it map back to partial states as usual. Why here and
     not a template in a domain: the active set (`gnppdsl.solve.active_set`) adds the pairs
     the verification finds near, which no rule lists. None when the motion does not exist
-    (the last step) or both bodies are static. `derived`: the states with their derived
-    variables (`derived_states`), computed once by a caller that builds many pair factors
-    (lab5_paper: 1282 factors, each deriving all 19 states again, 18 s of a profile)."""
-    full = list(derived) if derived is not None else derived_states(factory, states)
+    (the last step) or both bodies are static. The states are derived once per plan
+    (`GraphNLPFactory.derived_states`), not per factor."""
+    full = factory.derived_states(states)
 
     def fixed(x) -> bool:
         return not isinstance(x, tuple) and x not in factory.problem.objects
@@ -80,11 +78,6 @@ def pair_factor(factory: GraphNLPFactory, states: Sequence[Sequence[int]], step:
                           tags=frozenset(tags), step=step, span=1,
                           generator=(PartialState.of(acc.consulted[0].items()),),
                           variables=variables, body=body)
-
-def derived_states(factory: GraphNLPFactory, states: Sequence[Sequence[int]]) -> list:
-    """The plan's states with every derived variable recomputed (what `pair_factor` resolves in)."""
-    return [derive(factory.task, s) for s in states]
-
 
 def _motions(factory: GraphNLPFactory) -> list[tuple[str, str, tuple[str, ...]]]:
     """(configuration variable, trajectory variable, their parameter's types) triples: `q(r)` and `path(r)` declared

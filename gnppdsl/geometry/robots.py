@@ -14,7 +14,6 @@ the bundled arms (Panda, UR) the two coincide (nc == nq).
 from __future__ import annotations
 
 import functools
-import functools
 import math
 import os
 from dataclasses import dataclass, field

@@ -143,7 +143,6 @@ def _known(factors) -> set:
     return known
 
 
-
 def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: Any,
                  settings: ActiveSet) -> list:
     """The factors (`gnppdsl.compile.pair_factors`, at the domain's margin) of the near pairs of
@@ -157,17 +156,13 @@ def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: A
     table under their pads and against the obstacles beside them, listed at each of the
     motion's 19 waypoints and 20 midpoints; they became 1278 pair factors, most of them
     copies of one row, which the repair's NLPs carried through every iteration."""
-    from gnppdsl.compile.pair_factors import derived_states
-
     plan = result.extras["plan"]
     known = _known(graph.factor_instances)
-    derived = derived_states(compiled.factory, plan.states)
     static: dict[tuple, bool] = {}          # (step, pair): its factor reads no trajectory
     new = []
 
     def build(step: int, a: str, b: str, wp: float | None):
-        return pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp,
-                           derived=derived)
+        return pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp)
 
     for step, wp, a, b, d in near_pairs(result, report):
         pair = frozenset((a, b))
