@@ -102,6 +102,45 @@ class Batcher:
     stats: BatchStats = field(default_factory=BatchStats)
     verdicts: dict = field(default_factory=dict)  # Candidate.key -> feasible (bool)
     reachable: Reachable | None = None            # the screen (None: every candidate is solved)
+    lazy: bool = False                            # queue candidates until a plan holds one (`pending`)
+    pending: list = field(default_factory=list)   # lazy: (origin, Candidate), not decided yet
+    origins: int = 0                              # lazy: conflicts whose candidates were queued
+
+    def queue(self, cands: Iterator[Candidate], known: Sequence[Conflict]) -> int:
+        """Lazy batch: keep up to `budget` undecided candidates of one conflict (not cached, not
+        subsumed by a known conflict) in `pending`, under a new origin; their number."""
+        self.origins += 1
+        n = 0
+        for cand in cands:
+            if n >= self.budget:
+                break
+            if cand.key in self.verdicts or subsumed(cand.conflict, known):
+                continue
+            self.pending.append((self.origins, cand))
+            n += 1
+        return n
+
+    def hits(self, states: Sequence[State], shapes=None) -> Iterator[tuple[int, Candidate, int | None]]:
+        """Lazy batch: the pending candidates whose partial states the plan with these states
+        holds, as (origin, candidate, offset), each taken out of `pending` when yielded. With
+        `shapes` (candidate -> further sequences its learning forbids, e.g. its interleaved
+        instances) a candidate is also yielded, with offset None, when the plan holds one of them."""
+        from gnppdsl.logic.validate import find_sequence
+
+        for item in list(self.pending):
+            origin, cand = item
+            offset = find_sequence(states, cand.conflict)
+            if offset is None and not (shapes is not None and any(
+                    find_sequence(states, seq) is not None for seq in shapes(cand))):
+                continue
+            self.pending.remove(item)
+            yield origin, cand, offset
+
+    def siblings(self, origin: int) -> list[Candidate]:
+        """Lazy batch: take out of `pending` the candidates queued with `origin`."""
+        out = [c for o, c in self.pending if o == origin]
+        self.pending = [(o, c) for o, c in self.pending if o != origin]
+        return out
 
     def candidates(self, states: Sequence[State], factors: Sequence[FactorInstance],
                    plan_names: Sequence[str] = (), lifted: dict | None = None) -> Iterator[Candidate]:

@@ -76,6 +76,8 @@ class Loop(Anytime):
         if self.stats.N0 is None:
             self.stats.N0 = len(plan)
         self.say(f"plan #{self.stats.plans} (length {len(plan)}): {', '.join(plan.names) or '(empty)'}")
+        if self.batch_hit(plan):           # a queued renamed candidate it holds is infeasible
+            return None
         graph = self.build_graph(plan.states)
         if self.db is not None:
             known = self.db.infeasible_inside(graph)

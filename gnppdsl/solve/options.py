@@ -107,6 +107,12 @@ class SolveOptions:
                                      # factors, 45 per keyframe, and its per-arm reach conflicts are
                                      # one loop iteration each without the batch: work1 9 -> 3
                                      # plans, 12.1 -> 5.7 s CPU; planar keyframes have 3-15)
+    batch_lazy: bool = True          # ... the renamed candidates are queued, and one is solved only
+                                     # when a proposed plan contains its partial states (then, if
+                                     # infeasible, it is that plan's conflict, no graph-NLP built,
+                                     # and the other candidates of its conflict are decided at once);
+                                     # False: every candidate solved when its conflict is learned.
+                                     # seed 0, CPU s: field2 15.0 -> ?, field3 13.6 -> ?
     stretch_conflicts: bool = False  # gnpp, with interleave_conflicts: transitions of `preorder`-tagged
                                      # templates (tools.push_motion) are chain links too, so a push held
                                      # over several steps is learned for every length
