@@ -51,6 +51,13 @@ Conflict = tuple[PartialState, ...]
 BUDGET = 64
 """Default NLPs per learned conflict spent on renamed candidates (`SolveOptions.batch_conflicts`)."""
 
+EAGER_SHARE = 0.5
+"""Lazy batch: a conflict's first candidates are still decided at once, for at most this share
+of the CPU time its plan's attempt has cost; the rest are queued (`Batcher.pending`). Why: where
+a loop iteration is dear and candidates cheap (lab5_paper: 5-8 s per plan, 0.05-0.1 s per
+candidate) the eager batch saved plans; where candidates cost as much as a plan (field2:
+0.25-0.4 s each with restarts, ~1 s per plan) it only added NLPs."""
+
 FACTORY_FACTOR = 4
 """Renamings built with the factory per conflict, at most FACTORY_FACTOR * budget (a renaming
 that is cached, known or has no image costs no NLP but still a factory call)."""
@@ -105,6 +112,7 @@ class Batcher:
     lazy: bool = False                            # queue candidates until a plan holds one (`pending`)
     pending: list = field(default_factory=list)   # lazy: (origin, Candidate), not decided yet
     origins: int = 0                              # lazy: conflicts whose candidates were queued
+    deferred: Candidate | None = None             # lazy: taken from the iterator, not decided (`Run.batch`)
 
     def queue(self, cands: Iterator[Candidate], known: Sequence[Conflict]) -> int:
         """Lazy batch: keep up to `budget` undecided candidates of one conflict (not cached, not

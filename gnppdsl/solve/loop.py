@@ -73,6 +73,7 @@ class Loop(Anytime):
         """Fig. 3, steps 2-4 on one plan: its verified Result (solved or not), or None when the
         plan gave a conflict (handed to the planner) or was blocked."""
         self.stats.plans += 1
+        self.attempt_cpu = time.process_time()     # the lazy batch's eager share (`Run.batch`)
         if self.stats.N0 is None:
             self.stats.N0 = len(plan)
         self.say(f"plan #{self.stats.plans} (length {len(plan)}): {', '.join(plan.names) or '(empty)'}")

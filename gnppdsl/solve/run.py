@@ -4,13 +4,14 @@ conflicts handed to the planner, the independent re-check of a solution and the 
 """
 from __future__ import annotations
 
+import itertools
 import time
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.conflicts.batch import Batcher, Reachable, subsumed
+from gnppdsl.conflicts.batch import EAGER_SHARE, Batcher, Reachable, subsumed
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
 from gnppdsl.conflicts.lifting import Lifter
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
@@ -92,6 +93,7 @@ class Run(ReachabilityCosts):
                                    options.batch_conflicts, reachable=Reachable(self.task),
                                    lazy=options.batch_lazy)
         self.batch_origin: int | None = None   # lazy batch: the origin of the candidate being learned
+        self.attempt_cpu = time.process_time()   # CPU clock when the current plan's attempt began
 
     def say(self, msg: str) -> None:
         if self.progress is not None:
@@ -277,17 +279,29 @@ class Run(ReachabilityCosts):
             out = []
             if self.batch_origin is not None:     # the planner tries these renamings: decide them
                 out = self.decide_candidates(iter(self.batcher.siblings(self.batch_origin)), known)
-            self.batcher.queue(cands, known)
+            # the first candidates (the likeliest: `Batcher.candidates` order) decided now, for
+            # at most EAGER_SHARE of the CPU the plan that gave the conflict has cost so far
+            spent = time.process_time() - self.attempt_cpu
+            self.batcher.deferred = None
+            out += self.decide_candidates(cands, known, cpu_limit=EAGER_SHARE * spent)
+            deferred = self.batcher.deferred
+            self.batcher.queue(cands if deferred is None else itertools.chain([deferred], cands), known)
             return out
         finally:
             self.batcher.stats.time += time.perf_counter() - t0
             self.stats.batch_time = self.batcher.stats.time
 
-    def decide_candidates(self, cands: Iterable, known: list) -> list:
+    def decide_candidates(self, cands: Iterable, known: list, cpu_limit: float | None = None) -> list:
         """The infeasible candidates among `cands` (at most `batch_conflicts` NLPs), each with
-        its symmetric instances (`Lifter`: the same NLP, no solve); `known` grows by them."""
+        its symmetric instances (`Lifter`: the same NLP, no solve); `known` grows by them.
+        `cpu_limit`: stop after the candidate that reaches that many CPU seconds (the others
+        stay in the iterator)."""
         stats, out, solved = self.batcher.stats, [], 0
+        cpu0 = time.process_time()
         for cand in cands:
+            if cpu_limit is not None and time.process_time() - cpu0 >= cpu_limit:
+                self.batcher.deferred = cand      # not decided: queued by the caller
+                break
             if subsumed(cand.conflict, known):
                 continue                   # forbidden already: nothing to learn
             if cand.key not in self.batcher.verdicts:
