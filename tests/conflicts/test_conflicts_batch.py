@@ -117,16 +117,21 @@ def test_small_regions_of_other_sizes_are_learned_in_one_batch(tmp_path):
     assert place_feasible(compiled, "c1", "sc1", "big")
 
 
-def test_lazy_batch_decides_a_renaming_when_a_plan_holds_it(tmp_path):
-    """Lazy batch (the default): the first conflict about a small region learns no renaming;
+def test_lazy_batch_decides_a_renaming_when_a_plan_holds_it(tmp_path, monkeypatch):
+    """Lazy batch (the default), with no candidate decided at once (EAGER_SHARE 0; by default
+    the first ones are, for half the CPU of the conflict's plan, which on this small family
+    is all of them): the first conflict about a small region learns no renaming;
     the next plan that puts the blocker into another small region is refused by that queued
     renaming (source "batch", no graph-NLP of the plan), which brings the third small region
     with it -- the same regions as the eager batch, one plan later, and fewer candidate NLPs
     (those no plan holds are never solved). Every conflict holds in the plan it came from
     (`add_conflict` asserts it), and the solution is verified."""
+    from gnppdsl.solve import run
+
     compiled = gnppdsl.load_and_compile(str(uneven_family(tmp_path)))
-    lazy = solve(compiled, batch_conflicts=32)
     eager = solve(compiled, batch_conflicts=32, batch_lazy=False)
+    monkeypatch.setattr(run, "EAGER_SHARE", 0.0)
+    lazy = solve(compiled, batch_conflicts=32)
     for r in (lazy, eager):
         assert r.status == "solved" and r.stats.N == 8 and verify(compiled, r).ok
     regions = [c for c in lazy.conflicts if small_regions_named([c.text])]
