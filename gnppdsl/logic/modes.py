@@ -46,10 +46,10 @@ WALL_FACTOR = 4.0      # ... but at most 8 s of wall time (a machine shared by m
 # problem switched at different calls (lab5_paper's first call, horizons 0..12: 19k conflicts,
 # 1.6 s CPU idle; work5's: 40k, 1.3 s) and its plans, N and CPU time varied from run to run.
 # Calibrated on the first calls (conflicts per CPU second, clingo 5.8): lab5_paper 13k, work5
-# 31k, clutter_1 14k, stack_16 4.6k; 60000 keeps the idle machine's choices on the Lab and
-# Workshop problems (both first calls stay in clingo). SWITCH_AFTER x SAFETY_FACTOR CPU seconds
+# 31k, clutter_1 14k, stack_16 4.6k; 45000 keeps the idle machine's choices on the Lab and
+# Workshop problems (both first calls stay in clingo; work5 switched to Fast Downward cost 69 s CPU in a loaded sweep against 21-27 s idle). SWITCH_AFTER x SAFETY_FACTOR CPU seconds
 # remain as a safety cap (grounding counts no conflicts; stack_16: 4.6k conflicts per second).
-SWITCH_CONFLICTS = 60000
+SWITCH_CONFLICTS = 45000
 SAFETY_FACTOR = 4.0
 # wall seconds of Fast Downward's first turn in a call after the switch; then clingo gets as
 # long, resuming at the horizon it reached, and each further pair of turns doubles. Why: a
