@@ -112,7 +112,10 @@ class SolveOptions:
                                      # infeasible, it is that plan's conflict, no graph-NLP built,
                                      # and the other candidates of its conflict are decided at once);
                                      # False: every candidate solved when its conflict is learned.
-                                     # seed 0, CPU s: field2 15.0 -> ?, field3 13.6 -> ?
+                                     # The first candidates are still decided at once for half
+                                     # the CPU of the conflict's plan (`batch.EAGER_SHARE`).
+                                     # field2 13.9 -> 5.2-7.7 s CPU, work2 19.2 -> 11.4 (seed 0;
+                                     # docs/design.md, "Lazy batch")
     stretch_conflicts: bool = False  # gnpp, with interleave_conflicts: transitions of `preorder`-tagged
                                      # templates (tools.push_motion) are chain links too, so a push held
                                      # over several steps is learned for every length
