@@ -28,7 +28,7 @@ from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.check_memory import CheckMemory
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.options import overridden
-from gnppdsl.solve.plan_graph import bound_violation
+from gnppdsl.solve.plan_graph import TRAJ, bound_violation, is_trajectory
 
 if TYPE_CHECKING:  # pragma: no cover  (casadi)
     from gnppdsl.nlp.feasibility import FeasibilityResult
@@ -80,16 +80,40 @@ class CollisionScreen(CheckMemory):
 
     Only where the caller sets `screen` (with `overridden`): the keyframes joined with a motion
     (`keyframes_with_motions`) and the active set's repair of a round with few pairs
-    (`coverage`) -- starts that solve all but (some of) the collisions -- and a plan's own
-    keyframes after its relaxations when they are `huge` (SCREEN_KEYFRAMES_MIN). Not below
-    that: on clutter_4 that run took 264 s CPU against 103 (its last plan's screened keyframes
-    led to 2351 active-set pairs instead of 1670). Why not every graph: Algorithm 1's levels and slices are
+    (`coverage`) -- starts that solve all but (some of) the collisions -- a plan's own
+    keyframes after its relaxations when they are `huge` (SCREEN_KEYFRAMES_MIN), and the
+    relaxation levels without trajectories solved before the full graph (`plan_level`). Not
+    keyframes below SCREEN_KEYFRAMES_MIN: on clutter_4 that run took 264 s CPU against 103 (its
+    last plan's screened keyframes led to 2351 active-set pairs instead of 1670). Why not every graph: Algorithm 1's slices are
     solved to find a conflict, mostly infeasible, where a screened NLP only adds a failed run
     and moves the convergence points the search goes on from (clutter_4 with every graph
     screened: a screened no_robot_time_traj level of the first, infeasible plan failed and
     was solved whole; the solve took longer than without screening)."""
 
     screen = False                       # set around the solves that may be screened
+
+    def plan_level(self, g: GraphNLP) -> bool:
+        """Is g a relaxation level of the plan's graph without trajectories that `evaluate`
+        solves once before the full graph (`local_first`), other than its mode-switch graph
+        (screened only when `huge`)? Such a level is screened (`local_solve`).
+
+        Why: clutter_6's last plan (24 steps, 6 obstacles set down beside the pads) has a
+        no_robot_time_traj level of 2418 factors, 1986 of them `apart` pairs; from
+        no_col_traj's point (obstacles set down overlapping blocks, 138 rows violated) the
+        whole NLP stalled at 1.9e-6 after 300 iterations (15.5 s CPU), its components were
+        then searched and joined (~1 s). Screened (149 of 1986 near) it is solved in one NLP of
+        236 iterations, 2.7 s, and numpy finds every factor of the level holds. A level that
+        is infeasible costs one more NLP of the screened size before its whole solve (which
+        gives the verdict, as before)."""
+        if not self.local_first or any(is_trajectory(v) for v in g.variables):
+            return False
+        key = g.signature()
+        if key == self.graph.signature():
+            return False
+        modes = getattr(self, "_modes_key", None)
+        if modes is None:
+            modes = self._modes_key = self.graph.apply_relaxation({TRAJ}, "modes").signature()
+        return key != modes
 
     @staticmethod
     def huge(g: GraphNLP) -> bool:
