@@ -52,10 +52,10 @@ start (nothing much to leave out: the whole NLP is solved at once)."""
 SCREEN_ROUNDS = 4
 """Screened NLPs per graph before the whole graph is solved instead."""
 
-SCREEN_KEYFRAMES_MIN = 2500
+SCREEN_KEYFRAMES_MIN = 1000
 """Collision factors of a plan's own mode-switch graph (its keyframes, solved after the
-relaxations) above which it is screened too. Below it, not (clutter_4, ~2000 pairs: screened
-keyframes led to more active-set pairs and 264 s CPU against 103). stack_32's has 18356
+relaxations) above which it is screened too. Below it, not (a session before, clutter_4, 1665
+pairs: screened keyframes led to more active-set pairs and 264 s CPU against 103; see below). stack_32's has 18356
 (stack_16: 2588, the Lab problems a few hundred): solved whole, its NLP ran > 100 s CPU
 without a verdict (21354 factors); screened, 1308 of them are near at the relaxation's point.
 clutter_6's last plan has 2897 (3652 factors): solved whole from the relaxations' point it
@@ -63,7 +63,15 @@ failed its one start (156 iterations, 46 s CPU), and Alg. 1 then searched the no
 slice by slice until every component proved feasible (~120 s CPU more, a 22-step slice alone
 failing 253 iterations, 46 s); screened (173 of 2897 near) it is solved in 14 iterations,
 0.9 s, and every factor holds (numpy). Hence 2500, not 5000 (clutter_6 230 -> 113 s CPU;
-clutter_4 and stack_16 below it, unchanged)."""
+clutter_4 and stack_16 below it, unchanged).
+
+Then 1000 (clutter_4's 1665 screened too), once the relaxation levels before the full graph
+are screened (`plan_level`): from the screened no_robot_time_traj level's point clutter_4's
+last keyframes took 363 iterations solved whole (84.5 s CPU; 197 iterations, 26.7 s from the
+whole level's point), screened (118 of 1665 near, 3 rounds) 14.5 s. The active set then adds
+more pairs (218 against 154, the repair 9.8 s against 2.0), but the solve is shorter: clutter_4
+83.6 -> 67.0 s CPU (base, level screening alone 122.3); stack_16 24.2 -> 24.6, Lab 1 and Lab 4
+(a few hundred) unchanged."""
 
 
 MOTION_SCREEN_MIN = 16
