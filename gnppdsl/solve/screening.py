@@ -74,13 +74,20 @@ more pairs (218 against 154, the repair 9.8 s against 2.0), but the solve is sho
 (a few hundred) unchanged."""
 
 
-MOTION_SCREEN_MIN = 16
+MOTION_SCREEN_MIN = 8
 """Collision factors of one phase's motion NLP between fixed keyframes (`solve_motion`) from
 which it is screened too (each factor is a whole motion's rows against one body: `path_clear`
 is 6 distance rows at each of 18 waypoints). stack_16's motions have 18-36 (a `path_clear`
 per resting block and the table, a `carry_clear` per block when carrying), of which the
 interpolated start comes within SCREEN_DISTANCE of 2-6; a problem with a few objects has fewer
-than this and is not screened."""
+than this and is not screened.
+
+8, not 16 (issue 19): clutter_6's arm reaching for a block has 14 (a `path_clear` per resting
+object, the table, `paths_apart`) and was solved whole in 25-65 ipopt iterations (0.5-2.3 s
+CPU each, 6.3 s for the 8 such motions of its last plan); screened, 1-17. clutter_6 68.9 ->
+62.7 s CPU (motions 12.2 -> 7.8 s, same plan); clutter_4 (10 per motion) 67.0 -> 70.6: its
+motions 9.6 -> 5.0 s, but the active set then needed a third round (235 pairs against 220);
+lab4_paper 11.5 -> 10.7 s (41 NLPs against 42), lab1_paper unchanged (19 NLPs)."""
 
 
 class CollisionScreen(CheckMemory):
