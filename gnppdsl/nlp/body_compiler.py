@@ -37,11 +37,12 @@ from gnppdsl.nlp.lowering import (BodyError, BodyLowering, RowGroup, SlotSignatu
                                   lift_constants, row_groups, structure_key, uses)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CompiledBody:
-    """One casadi Function for a body structure, with the kind of each output row."""
+    """One casadi Function for a body structure, with the kind of each output row. Compared
+    and hashed by identity (the caches key compiled bodies by `id`)."""
 
-    function: ca.Function
+    source: Any                     # `function`, or a zero-argument callable building it
     kinds: tuple[str, ...]          # "eq" | "ineq", one per row of h
     n_params: int
     symbolic: str                   # "SX" | "MX"
@@ -54,6 +55,32 @@ class CompiledBody:
     # `function`'s values for evaluation only: the open function of the fast stop-gradient
     # values (`GeometryContext.witness_fast`, native distance queries); not differentiable
     evaluate: ca.Function | None = field(default=None, compare=False)
+    # `function`'s name and its slots' dimensions (its inputs but the last, p), known without
+    # building it; read from `source` when it is a Function
+    name: str = ""
+    slot_dims: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        f = self.source
+        if isinstance(f, ca.Function):
+            object.__setattr__(self, "name", f.name())
+            object.__setattr__(self, "slot_dims", tuple(f.size1_in(j) for j in range(f.n_in() - 1)))
+
+    @property
+    def function(self) -> ca.Function:
+        """(x_0, ..., x_{m-1}, p) -> h, the distance queries as their differentiable callbacks
+        (`Geometry.sdist_parts`), the form casadi differentiates itself. Built on first use
+        when the body queries distances (`source` a builder, `_with_queries`). Why lazily: the
+        solver's default path never evaluates it (ipopt gets `evaluate` as g and the
+        per-template derivatives from `open_function` and `stops`); building it cost a
+        substitution of the callbacks into the whole SX graph and a Function per template,
+        ~0.14 s of lab1_paper's 0.70 s of loading stored templates in a cold process. Its
+        name and slot dimensions are `name` and `slot_dims`."""
+        f = self.source
+        if not isinstance(f, ca.Function):
+            f = f()
+            object.__setattr__(self, "source", f)
+        return f
 
     @property
     def n_rows(self) -> int:
@@ -92,11 +119,9 @@ def mapped_inputs(x: ca.MX, P: ca.MX, cb, k: int, stacked, p0: int) -> tuple[lis
     """The inputs of one template's k instances for a mapped call: each variable slot as a
     (dim x k) matrix gathered from x, and the parameters as (n_params x k). Shared by the
     Jacobian and Hessian assembly so both read the instances in the same layout."""
-    F = cb.function
     slots = []
-    for j in range(F.n_in() - 1):
-        d = F.size1_in(j)
-        lo = sum(F.size1_in(i) for i in range(j))
+    for j, d in enumerate(cb.slot_dims):
+        lo = sum(cb.slot_dims[:j])
         idx = [stacked[t][lo + m] for t in range(k) for m in range(d)]
         slots.append(ca.reshape(x[idx], d, k))
     Pg = ca.reshape(P[p0:p0 + cb.n_params * k], cb.n_params, k) if cb.n_params else ca.MX(0, k)
@@ -145,9 +170,8 @@ def _has_repeats(cb: CompiledBody) -> bool:
 
 
 def _symbols(cb: CompiledBody) -> tuple[list, Any]:
-    F = cb.function
-    slots = [ca.SX.sym(f"x{j}", F.size1_in(j)) for j in range(F.n_in() - 1)]
-    return slots, ca.SX.sym("p", F.size1_in(F.n_in() - 1))
+    slots = [ca.SX.sym(f"x{j}", d) for j, d in enumerate(cb.slot_dims)]
+    return slots, ca.SX.sym("p", cb.n_params)
 
 
 def _open_rows(cb: CompiledBody, slots: list, p) -> tuple[Any, Any, Any]:
@@ -175,9 +199,10 @@ def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -
     return ca.Function(name, m, [open_f(*m, stop_f(*m))])
 
 
-def _with_queries(fname: str, slots: list, p, out, O, Ov, fast) -> tuple:
+def _with_queries(fname: str, slots: list, p, out, O, Ov: Callable[[], Any], fast) -> tuple:
     """(f, open_f, stops, evaluate) of a body whose rows `out` read the distance queries'
-    values through the symbols O: f with the queries' Functions `Ov` substituted, the open form
+    values through the symbols O: a builder of f, the rows with the queries' differentiable
+    callbacks `Ov()` substituted (built on first use: `CompiledBody.function`), the open form
     (x.., p, o), the queries' fast twins `fast` alone, and one graph with the fast twins
     substituted (the queries' inputs share the kinematic chains with the model). Shared by a
     freshly lowered body and one loaded from the store, so their graphs are equal."""
@@ -185,7 +210,9 @@ def _with_queries(fname: str, slots: list, p, out, O, Ov, fast) -> tuple:
     # the stop-gradient values are only ever evaluated: the fast twins
     stops = ca.Function(fname + "_stops", [*slots, p], [fast])
     evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
-    f = ca.Function(fname, [*slots, p], [ca.substitute(out, O, Ov)])
+
+    def f() -> ca.Function:
+        return ca.Function(fname, [*slots, p], [ca.substitute(out, O, Ov())])
     return f, open_f, stops, evaluate
 
 
@@ -219,22 +246,20 @@ def sx_jacobian(out, X, others: list) -> Any:
 def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
     """(x_0, ..., p) -> dh/dX by differentiating the whole body at once (reference for the
     grouped assembly; used for bodies without repeated constraints)."""
-    F = cb.function
     slots, p = _symbols(cb)
     X = ca.vertcat(*slots)
     out, O, Ov = _open_rows(cb, slots, p)
-    return _closed(F.name() + "_jac", [*slots, p], O, Ov, sx_jacobian(out, X, [p, O]), native)
+    return _closed(cb.name + "_jac", [*slots, p], O, Ov, sx_jacobian(out, X, [p, O]), native)
 
 
 def direct_hessian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
     """(x_0, ..., p, lam) -> d^2 (lam . h) / dX^2 by differentiating the whole body at once."""
-    F = cb.function
     slots, p = _symbols(cb)
     lam = ca.SX.sym("lam", cb.n_rows)
     X = ca.vertcat(*slots)
     out, O, Ov = _open_rows(cb, slots, p)
     H = ca.hessian(ca.dot(lam, out), X)[0] if cb.n_rows else ca.SX(X.numel(), X.numel())
-    return _closed(F.name() + "_hess", [*slots, p, lam], O, Ov, H, native)
+    return _closed(cb.name + "_hess", [*slots, p, lam], O, Ov, H, native)
 
 
 class BodyCompiler:
@@ -332,14 +357,13 @@ class BodyCompiler:
         SX graph built in 2.7-3.1 s (whole-body ca.hessian: 4.0 s) and evaluated in 36 ms; the
         mapped one built in 13 ms and evaluated in 33 ms, with equal sparsity and values to
         4e-16. `tests/nlp/test_nlp_buildcost*.py` check the values and sparsity."""
-        F = cb.function
-        m = F.n_in() - 1
-        sizes = [F.size1_in(j) for j in range(m)]
+        sizes = list(cb.slot_dims)
+        m = len(sizes)
         offs = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         n_x = int(offs[-1])
         S = ca.SX if inline else ca.MX
         slots = [S.sym(f"x{j}", sizes[j]) for j in range(m)]
-        p = S.sym("p", F.size1_in(m))
+        p = S.sym("p", cb.n_params)
         lam = S.sym("lam", cb.n_rows)
         X = ca.vertcat(*slots) if slots else S(0, 1)
         vals, rows, cols = [], [], []
@@ -387,8 +411,8 @@ class BodyCompiler:
         M = scatter_sum(n_x if hessian else cb.n_rows, n_x, cat(rows), cat(cols),
                         ca.vertcat(*vals) if vals else S(0, 1))
         if hessian:
-            return ca.Function(F.name() + "_hess", [*slots, p, lam], [M])
-        return ca.Function(F.name() + "_jac", [*slots, p], [M])
+            return ca.Function(cb.name + "_hess", [*slots, p, lam], [M])
+        return ca.Function(cb.name + "_jac", [*slots, p], [M])
 
     def compile(self, factor: FactorInstance) -> tuple[CompiledBody, np.ndarray]:
         """(compiled body, parameter values) for one factor instance.
@@ -518,18 +542,19 @@ class BodyCompiler:
         p = ca.SX.sym("p", n_params)
         O = ca.SX.sym("o", F.size1_in(len(slots) + 1))
         out, A = F(*slots, p, O)
-        Ov, fast, lo = [], [], 0
+        queries, fast, lo = [], [], 0          # (callback, its input), fast twins' outputs
         for a, b, planar in payload["stops"]:
             cbf = g.sdist_parts(a, b, planar)[0]
             x = A[lo:lo + cbf.size1_in(0)]
             lo += cbf.size1_in(0)
-            Ov.append(cbf(x))
+            queries.append((cbf, x))
             fast.append((g.witness_fast(a, b, planar) if hasattr(g, "witness_fast") else cbf)(x))
         if lo != A.numel():
             raise ValueError("stored distance queries do not match the geometry's")
-        f, open_f, stops, evaluate = _with_queries(fname, slots, p, out, O, ca.vertcat(*Ov),
-                                                   ca.vertcat(*fast))
-        return CompiledBody(f, *meta, open_f, stops, evaluate)
+        f, open_f, stops, evaluate = _with_queries(
+            fname, slots, p, out, O, lambda: ca.vertcat(*[cbf(x) for cbf, x in queries]),
+            ca.vertcat(*fast))
+        return CompiledBody(f, *meta, open_f, stops, evaluate, fname, tuple(s.dim for s in sigs))
 
     def _lower(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...], n_params: int,
                prims: set, mx: bool) -> tuple[CompiledBody, dict | None]:
@@ -550,13 +575,13 @@ class BodyCompiler:
         open_f = stops = evaluate = None
         if builder.stops:
             O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
-            f, open_f, stops, evaluate = _with_queries(fname, slots, p, out, O, Ov,
+            f, open_f, stops, evaluate = _with_queries(fname, slots, p, out, O, lambda: Ov,
                                                        ca.vertcat(*builder.fast_stops))
         else:
             f = ca.Function(fname, [*slots, p], [out])
         groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
         cb = CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
-                          groups, open_f, stops, evaluate)
+                          groups, open_f, stops, evaluate, fname, tuple(s.dim for s in sigs))
         stored = None
         if not mx and self.store is not None:
             try:

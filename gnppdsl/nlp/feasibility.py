@@ -446,14 +446,13 @@ class FeasibilitySolver:
             k = len(members)
             slots = []
             stacked = [[] for _ in members]
-            for j in range(cb.function.n_in() - 1):
+            for j, d in enumerate(cb.slot_dims):
                 idx = []
                 for t, (r, _, _) in enumerate(members):
                     v = graph.factor(r).variables[j]
                     o = offsets[index[v]]
                     idx.extend(range(o, o + v.dim))
                     stacked[t].extend(range(o, o + v.dim))
-                d = cb.function.size1_in(j)
                 slots.append(ca.reshape(x[idx], d, k))
             layout.append((cb, k, stacked, p0, r0))
             npar = cb.n_params

@@ -36,6 +36,9 @@ from gnppdsl.reach.library import Solution, SolutionLibrary
 from gnppdsl.reach.settings import ReachSettings
 
 SAMPLE, QUERY, ENHANCE = "sample", "query", "enhance"
+CONTACT = "contact"     # a query's end configuration that is itself in collision (`attach_config`)
+CONTACT_SHARE = 0.5     # share of an edge from a contact end that may still collide (`leaves_contact`)
+CONTACT_SIGMA = 0.05    # first joint-space spread around a contact end (`_free_near`), doubled each round
 
 
 @dataclass
@@ -57,6 +60,7 @@ class GraphStats:
     edges_removed: int = 0
     enhanced_nodes: int = 0
     replaced_nodes: int = 0
+    contact_ends: int = 0       # query ends in collision, joined by segments leaving the contact
     queries: int = 0
     dijkstra_runs: int = 0
     query_time: float = 0.0
@@ -85,6 +89,7 @@ class ReachabilityGraph:
         self._next_id = 0
         self._n_samples = 0
         self._ids: list[int] = []
+        self._contact: set[int] = set()          # the temporary ends of the current query
         self._X: np.ndarray = np.zeros((0, 3))
         self._lo = np.asarray(settings.workspace[0], dtype=float)
         self._hi = np.asarray(settings.workspace[1], dtype=float)
@@ -195,6 +200,7 @@ class ReachabilityGraph:
     def _remove_node(self, nid: int) -> None:
         i = self._ids.index(nid)
         self._n_samples -= self.G.nodes[nid]["kind"] == SAMPLE
+        self._contact.discard(nid)
         self._ids.pop(i)
         self._X = np.delete(self._X, i, axis=0)
         self.G.remove_node(nid)
@@ -228,7 +234,7 @@ class ReachabilityGraph:
         """Edges from u to its k nearest nodes; with `check`, only those passing the collision
         check are kept (and marked checked). Returns the number of edges u gained or kept."""
         n = 0
-        for v in self.nearest(self.G.nodes[u]["x"], self.settings.neighbours, exclude={u}):
+        for v in self.nearest(self.G.nodes[u]["x"], self.settings.neighbours, exclude={u} | self._contact):
             e = frozenset((u, v))
             if e in self._invalid:
                 continue
@@ -334,9 +340,66 @@ class ReachabilityGraph:
         u = self._find(x=self.fk_position(q), q=q)
         if u is not None and np.allclose(self.G.nodes[u]["q"], q, atol=1e-9, rtol=0):
             return u
+        if not self.checker.config_free(q):
+            return self._attach_contact(q)
         u = self._add_node(NodeValidation(self.fk_position(q), q, 0.0, 0), QUERY)
         self._attach(u)
         return u
+
+    def _attach_contact(self, q) -> int:
+        """A node for an end configuration that is itself in collision (a keyframe the NLP put
+        in contact with a pair its graph-NLP does not constrain yet: the active set adds such
+        pairs only in later rounds). Every edge checked from it would fail at its first
+        configuration, and the enhancement around it would add dozens of nodes before the query
+        gave up (sort_random_pr2 instance 2: 3 of 4 motions, 175 enhancement nodes). Instead it
+        joins its k nearest free nodes by segments that leave the contact (`leaves_contact`):
+        the graph's path is collision-free after the first segment's colliding start, and the
+        NLP moves the rest. The node is temporary (`_solve` removes it after the query), so no
+        other path runs through a colliding configuration."""
+        u = self._add_node(NodeValidation(self.fk_position(q), q, 0.0, 0), CONTACT)
+        self._contact.add(u)
+        self.stats.contact_ends += 1
+        for v in self.nearest(self.G.nodes[u]["x"], self.settings.neighbours, exclude=self._contact | {u}):
+            self.stats.edge_checks += 1
+            if self.leaves_contact(q, self.G.nodes[v]["q"]):
+                self.G.add_edge(u, v, cost=self.edge_cost(u, v), checked=True)
+        if self.G.degree(u) == 0:
+            free = self._free_near(q)
+            if free is not None:
+                w = self._add_node(NodeValidation(self.fk_position(free), free, 0.0, 0), QUERY)
+                self.G.add_edge(u, w, cost=self.edge_cost(u, w), checked=True)
+                self._attach(w)
+        return u
+
+    def _free_near(self, q) -> np.ndarray | None:
+        """A free configuration a short segment from a colliding q leads to (`leaves_contact`):
+        Gaussian joint-space perturbations of q, the spread growing from CONTACT_SIGMA. Why:
+        the graph's nodes are other IK branches (sort_random_pr2 instance 2: the nearest node
+        1.9-2.6 rad away in joint space, every segment to it colliding over most of its length),
+        so a keyframe in contact reaches none of them directly."""
+        sigma = CONTACT_SIGMA
+        for _ in range(self.settings.enhance_rounds):
+            for _ in range(self.settings.enhance_samples):
+                qf = np.clip(q + self.rng.normal(0.0, sigma, q.shape), self.robot.lower, self.robot.upper)
+                if self.checker.config_free(qf) and self.leaves_contact(q, qf):
+                    return qf
+            sigma *= 2.0
+        return None
+
+    def leaves_contact(self, q_contact, q_free) -> bool:
+        """Does the straight segment from a colliding q_contact to a free node leave the contact
+        for good: its configurations may collide at first, over at most CONTACT_SHARE of the
+        segment, and are free from the first free one on?"""
+        qs = self.checker.segment_configs(q_contact, q_free, self.settings.interpolation,
+                                          self.settings.max_joint_step)
+        limit = int(np.ceil(CONTACT_SHARE * len(qs)))
+        i = 0
+        while i < len(qs) and not self.checker.config_free(qs[i]):
+            i += 1
+            if i > limit:
+                return False
+        return all(self.checker.config_free(c) for c in qs[i + 1:][::-1])
+
 
     def _attach(self, u: int) -> None:
         self._connect(u, check=True)
@@ -371,7 +434,7 @@ class ReachabilityGraph:
                     return None
                 enhanced = True
                 for end in (s, t):
-                    if not nx.has_path(self.G, s, t):
+                    if self.G.nodes[end]["kind"] != CONTACT and not nx.has_path(self.G, s, t):
                         self._enhance(self.G.nodes[end]["x"], lambda: nx.has_path(self.G, s, t),
                                       seed_q=self.G.nodes[end]["q"])
                 continue
@@ -404,6 +467,8 @@ class ReachabilityGraph:
                 sol = (Solution((key_a, key_b), r.waypoints, r.cost, r.nodes) if r is not None
                        else Solution((key_a, key_b), np.zeros((0, self.robot.nc)), math.inf))
         finally:
+            for n in list(self._contact):        # temporary ends (`_attach_contact`)
+                self._remove_node(n)
             self.stats.query_time += time.perf_counter() - t0
         self.library.put(key_a, key_b, sol)
         return sol

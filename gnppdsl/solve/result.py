@@ -107,6 +107,7 @@ class Stats:
     reach_edge_checks: int = 0        # ... lazy edge collision checks
     reach_edges_removed: int = 0      # ... edges those checks removed
     reach_enhanced_nodes: int = 0     # ... nodes added by enhancement (Gaussian samples)
+    reach_contact_ends: int = 0       # ... query ends in collision, joined by segments leaving it
     reach_warmstarts: int = 0         # trajectories warm-started with a graph path (getWaypoints)
     reach_waypoints: int = 0          # ... their waypoints
     reach_straight: int = 0           # warm starts the graph had no path for (straight line instead)
@@ -278,7 +279,7 @@ class Result:
                          f"{s.reach_queries} queries "
                          f"({s.reach_library_hits} from the library), {s.reach_edge_checks} edge checks "
                          f"({s.reach_edges_removed} edges removed), {s.reach_enhanced_nodes} enhancement "
-                         f"nodes; {s.reach_warmstarts} trajectories warm-started with graph paths "
+                         f"nodes, {s.reach_contact_ends} ends in contact; {s.reach_warmstarts} trajectories warm-started with graph paths "
                          f"({s.reach_waypoints} waypoints), {s.reach_straight} without a path")
         if s.kernels_failed:
             lines.append(f"jit: {s.kernels_failed} kernels not compiled, run by casadi's virtual machine "

@@ -163,6 +163,7 @@ class ReachabilityCosts:
         s = self.stats
         s.reach_samples = s.reach_queries = s.reach_library_hits = 0
         s.reach_edge_checks = s.reach_edges_removed = s.reach_enhanced_nodes = s.reach_restored = 0
+        s.reach_contact_ends = 0
         for graph, _ in self.reach.values():
             g = graph.stats
             s.reach_samples += graph.num_samples
@@ -172,3 +173,4 @@ class ReachabilityCosts:
             s.reach_edge_checks += g.edge_checks
             s.reach_edges_removed += g.edges_removed
             s.reach_enhanced_nodes += g.enhanced_nodes
+            s.reach_contact_ends += g.contact_ends

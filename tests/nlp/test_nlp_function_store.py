@@ -227,3 +227,40 @@ def test_a_store_directory_that_is_not_private_is_never_read_or_written(lab, tmp
     store = FunctionStore(shared)
     assert store.save("ab" + "0" * 62, {"function": ""})
     assert stat.S_IMODE(os.stat(shared).st_mode) == 0o700
+
+
+def test_the_callback_form_is_built_only_when_read(lab, tmp_path):
+    """`CompiledBody.function` (the rows with the differentiable distance callbacks) is built on
+    first use: compiling, loading from the store, the per-template derivatives and a keyframe
+    solve with ipopt never read it (they use `evaluate`, `open_function` and `stops`), and read
+    later it is the same Function as an eager build would give (the test above compares it
+    between a stored and a fresh body)."""
+    from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
+    from gnppdsl.solve.plan_graph import plan_graph
+
+    c, factors = lab
+    writer = BodyCompiler(c.geometry, store=FunctionStore(tmp_path))
+    for f in factors:
+        writer.compile(f)
+    reader = BodyCompiler(c.geometry, store=FunctionStore(tmp_path))
+    g = plan_graph(c.factory, plan_states(c.task, parse_plan(c.task, PLAN)))
+    modes = g.subgraph(variables=[v for v in g.variables if not v.waypoints], suffix="{modes}")
+    solver = FeasibilitySolver(c.geometry, SolverOptions(restarts=0), compiler=reader)
+    assert solver.solve(modes, seed=0).feasible
+    lazy = 0
+    for f in factors:
+        for comp in (writer, reader):
+            cb, _ = comp.compile(f)
+            comp.jacobian(cb)
+            comp.hessian(cb)
+            if cb.open_function is None:
+                assert isinstance(cb.source, ca.Function)
+                continue
+            lazy += 1
+            assert not isinstance(cb.source, ca.Function)        # not built by any of the above
+            F = cb.function
+            assert cb.source is F and cb.function is F            # built once, then kept
+            assert (cb.name, cb.slot_dims) == (F.name(), tuple(F.size1_in(j) for j in range(F.n_in() - 1)))
+            args = _inputs(F, np.random.default_rng(2))
+            np.testing.assert_allclose(np.array(F(*args)), np.array(cb.evaluate(*args)), rtol=1e-9, atol=1e-9)
+    assert lazy > 0
