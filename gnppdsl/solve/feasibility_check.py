@@ -260,7 +260,8 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
         # keyframes stall at 1.6e-3 and the polish solves them). The small levels solved
         # before it keep their polish: it is cheap, and their convergence point shapes the
         # conflict search (Lab 4: two more NLPs without it).
-        screened = self.screened(g, warm)      # verified on every factor, or None
+        with overridden(self, screen=self.screen or self.plan_level(g)):
+            screened = self.screened(g, warm)      # verified on every factor, or None
         if screened is not None:
             return screened
         polish = self.far_polish(g) if g.signature() == self.graph.signature() else {}

@@ -28,7 +28,7 @@ from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.check_memory import CheckMemory
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.options import overridden
-from gnppdsl.solve.plan_graph import bound_violation
+from gnppdsl.solve.plan_graph import TRAJ, bound_violation, is_trajectory
 
 if TYPE_CHECKING:  # pragma: no cover  (casadi)
     from gnppdsl.nlp.feasibility import FeasibilityResult
@@ -52,10 +52,10 @@ start (nothing much to leave out: the whole NLP is solved at once)."""
 SCREEN_ROUNDS = 4
 """Screened NLPs per graph before the whole graph is solved instead."""
 
-SCREEN_KEYFRAMES_MIN = 2500
+SCREEN_KEYFRAMES_MIN = 1000
 """Collision factors of a plan's own mode-switch graph (its keyframes, solved after the
-relaxations) above which it is screened too. Below it, not (clutter_4, ~2000 pairs: screened
-keyframes led to more active-set pairs and 264 s CPU against 103). stack_32's has 18356
+relaxations) above which it is screened too. Below it, not (a session before, clutter_4, 1665
+pairs: screened keyframes led to more active-set pairs and 264 s CPU against 103; see below). stack_32's has 18356
 (stack_16: 2588, the Lab problems a few hundred): solved whole, its NLP ran > 100 s CPU
 without a verdict (21354 factors); screened, 1308 of them are near at the relaxation's point.
 clutter_6's last plan has 2897 (3652 factors): solved whole from the relaxations' point it
@@ -63,16 +63,31 @@ failed its one start (156 iterations, 46 s CPU), and Alg. 1 then searched the no
 slice by slice until every component proved feasible (~120 s CPU more, a 22-step slice alone
 failing 253 iterations, 46 s); screened (173 of 2897 near) it is solved in 14 iterations,
 0.9 s, and every factor holds (numpy). Hence 2500, not 5000 (clutter_6 230 -> 113 s CPU;
-clutter_4 and stack_16 below it, unchanged)."""
+clutter_4 and stack_16 below it, unchanged).
+
+Then 1000 (clutter_4's 1665 screened too), once the relaxation levels before the full graph
+are screened (`plan_level`): from the screened no_robot_time_traj level's point clutter_4's
+last keyframes took 363 iterations solved whole (84.5 s CPU; 197 iterations, 26.7 s from the
+whole level's point), screened (118 of 1665 near, 3 rounds) 14.5 s. The active set then adds
+more pairs (218 against 154, the repair 9.8 s against 2.0), but the solve is shorter: clutter_4
+83.6 -> 67.0 s CPU (base, level screening alone 122.3); stack_16 24.2 -> 24.6, Lab 1 and Lab 4
+(a few hundred) unchanged."""
 
 
-MOTION_SCREEN_MIN = 16
+MOTION_SCREEN_MIN = 8
 """Collision factors of one phase's motion NLP between fixed keyframes (`solve_motion`) from
 which it is screened too (each factor is a whole motion's rows against one body: `path_clear`
 is 6 distance rows at each of 18 waypoints). stack_16's motions have 18-36 (a `path_clear`
 per resting block and the table, a `carry_clear` per block when carrying), of which the
 interpolated start comes within SCREEN_DISTANCE of 2-6; a problem with a few objects has fewer
-than this and is not screened."""
+than this and is not screened.
+
+8, not 16 (issue 19): clutter_6's arm reaching for a block has 14 (a `path_clear` per resting
+object, the table, `paths_apart`) and was solved whole in 25-65 ipopt iterations (0.5-2.3 s
+CPU each, 6.3 s for the 8 such motions of its last plan); screened, 1-17. clutter_6 68.9 ->
+62.7 s CPU (motions 12.2 -> 7.8 s, same plan); clutter_4 (10 per motion) 67.0 -> 70.6: its
+motions 9.6 -> 5.0 s, but the active set then needed a third round (235 pairs against 220);
+lab4_paper 11.5 -> 10.7 s (41 NLPs against 42), lab1_paper unchanged (19 NLPs)."""
 
 
 class CollisionScreen(CheckMemory):
@@ -80,16 +95,40 @@ class CollisionScreen(CheckMemory):
 
     Only where the caller sets `screen` (with `overridden`): the keyframes joined with a motion
     (`keyframes_with_motions`) and the active set's repair of a round with few pairs
-    (`coverage`) -- starts that solve all but (some of) the collisions -- and a plan's own
-    keyframes after its relaxations when they are `huge` (SCREEN_KEYFRAMES_MIN). Not below
-    that: on clutter_4 that run took 264 s CPU against 103 (its last plan's screened keyframes
-    led to 2351 active-set pairs instead of 1670). Why not every graph: Algorithm 1's levels and slices are
+    (`coverage`) -- starts that solve all but (some of) the collisions -- a plan's own
+    keyframes after its relaxations when they are `huge` (SCREEN_KEYFRAMES_MIN), and the
+    relaxation levels without trajectories solved before the full graph (`plan_level`). Not
+    keyframes below SCREEN_KEYFRAMES_MIN: on clutter_4 that run took 264 s CPU against 103 (its
+    last plan's screened keyframes led to 2351 active-set pairs instead of 1670). Why not every graph: Algorithm 1's slices are
     solved to find a conflict, mostly infeasible, where a screened NLP only adds a failed run
     and moves the convergence points the search goes on from (clutter_4 with every graph
     screened: a screened no_robot_time_traj level of the first, infeasible plan failed and
     was solved whole; the solve took longer than without screening)."""
 
     screen = False                       # set around the solves that may be screened
+
+    def plan_level(self, g: GraphNLP) -> bool:
+        """Is g a relaxation level of the plan's graph without trajectories that `evaluate`
+        solves once before the full graph (`local_first`), other than its mode-switch graph
+        (screened only when `huge`)? Such a level is screened (`local_solve`).
+
+        Why: clutter_6's last plan (24 steps, 6 obstacles set down beside the pads) has a
+        no_robot_time_traj level of 2418 factors, 1986 of them `apart` pairs; from
+        no_col_traj's point (obstacles set down overlapping blocks, 138 rows violated) the
+        whole NLP stalled at 1.9e-6 after 300 iterations (15.5 s CPU), its components were
+        then searched and joined (~1 s). Screened (149 of 1986 near) it is solved in one NLP of
+        236 iterations, 2.7 s, and numpy finds every factor of the level holds. A level that
+        is infeasible costs one more NLP of the screened size before its whole solve (which
+        gives the verdict, as before)."""
+        if not self.local_first or any(is_trajectory(v) for v in g.variables):
+            return False
+        key = g.signature()
+        if key == self.graph.signature():
+            return False
+        modes = getattr(self, "_modes_key", None)
+        if modes is None:
+            modes = self._modes_key = self.graph.apply_relaxation({TRAJ}, "modes").signature()
+        return key != modes
 
     @staticmethod
     def huge(g: GraphNLP) -> bool:

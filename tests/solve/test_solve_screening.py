@@ -273,3 +273,39 @@ def test_numpy_checks_skip_factors_that_held_at_the_same_values(monkeypatch):
     if first > 1e-6:
         run.violation([f], point)
         assert len(evaluated) == n + 2
+
+
+
+def test_a_plans_relaxation_levels_before_its_full_graph_are_screened(monkeypatch):
+    """A relaxation level without trajectories that `evaluate` solves once before the plan's
+    full graph (`plan_level`: local_first; here every level, order relaxed_first) is screened
+    like the huge keyframes; the mode-switch graph is not by that rule (the level no_traj has
+    its factors: only when `huge`), nor the subgraphs of Alg. 1's search. On the toy the first
+    plan's no_time_traj level is infeasible: its screened NLP fails, which is no verdict (the
+    level is solved whole and the solve ends with the same plan and conflicts as without).
+    The counterfactual (it can fail): with `plan_level` off, no level is screened."""
+    _screen_everything(monkeypatch)
+    monkeypatch.setattr(screening, "SCREEN_KEYFRAMES_MIN", 10 ** 9)
+    options = replace(OPTIONS, order="relaxed_first")
+    seen = _spy_nlps(monkeypatch)
+    levels = []
+    real = FeasibilityCheck.plan_level
+
+    def spy(self, g):
+        out = real(self, g)
+        levels.append((g.name, out, self.local_first))
+        return out
+
+    monkeypatch.setattr(FeasibilityCheck, "plan_level", spy)
+    res = _solved(options)
+    screened = [(g.name, ok) for g, ok in seen if "{screened" in g.name]
+    assert any(n.startswith("G[no_time_traj]{screened") for n, _ in screened), screened
+    assert not [n for n, _ in screened if n.startswith(("G[modes]", "G[no_traj]"))]
+    assert all(local for _, out, local in levels if out)
+    assert not [n for n, out, _ in levels if out and (n == "G" or "#" in n or "traj]" not in n)]
+
+    seen.clear()
+    monkeypatch.setattr(FeasibilityCheck, "plan_level", lambda self, g: False)
+    plain = _solved(options)
+    assert not [g.name for g, _ in seen if g.name.startswith("G[no_") and "{screened" in g.name]
+    assert res.plan == plain.plan and len(res.conflicts) == len(plain.conflicts)
