@@ -17,7 +17,8 @@ north-west, south-west) the same subgraph solved in 30-60 iterations.
 `restart_guesses` gives, for the keyframe variables of such robots at a step where the robot
 picks an object still at its scene pose or releases one onto a static place, the home
 configuration with the base moved next to the target: the first point on rings of
-`RADII` metres around it whose disc of `BASE_RADIUS` stays out of every static obstacle's
+`RADII` metres beyond the base's footprint radius around it (`base_radius`: the robot's base
+link and `base_clearance`) whose disc of that radius stays out of every static obstacle's
 footprint and inside the robot's `base_min`/`base_max`, nearest the previous keyframe's base
 first (where the base stands before this pick or put: the robot's placement at its last
 earlier pick or put, its home before the first), turned to face the target (the arm reaches
@@ -35,9 +36,47 @@ if TYPE_CHECKING:  # pragma: no cover
     from gnppdsl.compile.factors import VarInstance
     from gnppdsl.compile.factory import GraphNLPFactory
 
-RADII = (0.55, 0.75, 0.95)      # base-to-target distances tried (metres), nearest first
+RADII = (0.25, 0.45, 0.65)      # base-to-target distances tried beyond the footprint radius (m)
 ANGLES = 16                     # points per ring
-BASE_RADIUS = 0.3               # the platform's footprint radius assumed for the free check
+BASE_RADIUS = 0.3               # the footprint radius when the robot names no base link
+
+
+def base_radius(spec) -> float:
+    """The footprint radius of a mobile robot (scene entry `spec`): the largest x-y distance of
+    a vertex of its base link's collision shapes (the link of role `base`, `links: {base: ..}`)
+    from the planar joint, plus the scene's `base_clearance` the NLP keeps from the tables;
+    BASE_RADIUS when the scene names no base link.
+
+    Why: the placement's free check and rings were set for the mobile Panda (panda_link0's
+    hull reaches 0.155 m, its platform 0.15 m beyond: 0.305 m; rings 0.55-0.95 m). The PR2's
+    base_link is its 0.67 m square platform (hull 0.43 m, clearance 0.02 m: 0.45 m): with a
+    0.3 m disc and rings from 0.55 m, its keyframe bases started overlapping the tables and
+    the NLP pushed them out on whichever side (sort_random_pr2, seed 0: instances 4 and 6
+    drove 5.32 and 6.10 m against plain GNPP's 2.20 and 2.12 m). The rings (RADII) are now
+    distances beyond this radius: the Panda's are unchanged, the PR2's 0.70-1.10 m."""
+    link = getattr(spec, "links", {}).get("base")
+    if not link:
+        return BASE_RADIUS
+    import numpy as np
+    import pinocchio as pin
+
+    from gnppdsl.geometry.robots import load_robot
+    from gnppdsl.geometry.shapes import shape_vertices
+
+    model = load_robot(spec)
+    c = np.asarray(spec.home, float).copy()
+    c[:3] = 0.0                                       # the planar joint at the origin
+    data = model.model.createData()
+    pin.framesForwardKinematics(model.model, data, model.to_pin_q(c))
+    T = data.oMf[model.frame_id(link)].homogeneous
+    r = 0.0
+    for g in model.links.get(link, []):
+        M = T @ g.placement
+        w = shape_vertices(g.shape) @ M[:3, :3].T + M[:3, 3]
+        r = max(r, float(np.hypot(w[:, 0], w[:, 1]).max()))
+    if r == 0.0:
+        return BASE_RADIUS
+    return r + float(spec.attributes.get("base_clearance", 0.0) or 0.0)
 
 
 def _yaw(q: Sequence[float]) -> float:
@@ -45,8 +84,8 @@ def _yaw(q: Sequence[float]) -> float:
     return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
-def _footprint_free(x: float, y: float, obstacles) -> bool:
-    """Is the disc of BASE_RADIUS at (x, y) outside every obstacle's footprint (a box's
+def _footprint_free(x: float, y: float, obstacles, radius: float = BASE_RADIUS) -> bool:
+    """Is the disc of `radius` at (x, y) outside every obstacle's footprint (a box's
     rectangle, otherwise the circle of its half-diagonal)?"""
     from gnppdsl.ir.instances import footprint_radius
 
@@ -58,23 +97,26 @@ def _footprint_free(x: float, y: float, obstacles) -> bool:
             dx, dy = x - ox, y - oy
             lx, ly = math.cos(t) * dx + math.sin(t) * dy, -math.sin(t) * dx + math.cos(t) * dy
             ex, ey = max(abs(lx) - size[0] / 2, 0.0), max(abs(ly) - size[1] / 2, 0.0)
-            if math.hypot(ex, ey) < BASE_RADIUS:
+            if math.hypot(ex, ey) < radius:
                 return False
-        elif math.hypot(x - ox, y - oy) < BASE_RADIUS + footprint_radius(o):
+        elif math.hypot(x - ox, y - oy) < radius + footprint_radius(o):
             return False
     return True
 
 
 def base_next_to(target: Sequence[float], home: Sequence[float], obstacles,
                  lo: Sequence[float] | None = None, hi: Sequence[float] | None = None,
-                 near: Sequence[float] | None = None, across_rings: bool = False) -> list[float] | None:
+                 near: Sequence[float] | None = None, across_rings: bool = False,
+                 radius: float = BASE_RADIUS) -> list[float] | None:
     """`home` ([x, y, theta, arm...]) with the base at the first free point around target's
     (x, y) nearest the base `near` (default: home's; see the module docstring), facing it; None
     when no ring point is free. `across_rings`: the free point of any ring nearest `near` (the
-    least travel), instead of the nearest one of the innermost ring with a free point."""
+    least travel), instead of the nearest one of the innermost ring with a free point. `radius`:
+    the base's footprint (`base_radius`); the rings lie RADII beyond it."""
     tx, ty = float(target[0]), float(target[1])
     hx, hy = (float(near[0]), float(near[1])) if near is not None else (float(home[0]), float(home[1]))
-    for r in ([RADII] if across_rings else [(r,) for r in RADII]):
+    rings = tuple(radius + d for d in RADII)
+    for r in ([rings] if across_rings else [(r,) for r in rings]):
         points = []
         for k in range(ANGLES * len(r)):
             a = 2 * math.pi * (k % ANGLES) / ANGLES
@@ -83,7 +125,7 @@ def base_next_to(target: Sequence[float], home: Sequence[float], obstacles,
                 continue
             points.append((math.hypot(x - hx, y - hy), k, x, y))
         for _, _, x, y in sorted(points):
-            if _footprint_free(x, y, obstacles):
+            if _footprint_free(x, y, obstacles, radius):
                 q = [float(v) for v in home]
                 q[0], q[1], q[2] = x, y, math.atan2(ty - y, tx - x)
                 return q
@@ -136,14 +178,16 @@ def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance
             targets.append((v.step, robot, v, target))
     out: dict = {}
     previous = {n: list(r.home) for n, r in mobile.items()}   # the base before the step
+    radii = {n: base_radius(r) for n, r in mobile.items() if any(t[1] == n for t in targets)}
     for _, robot, v, target in sorted(targets, key=lambda t: (t[0], t[1])):
         spec = mobile[robot]
         lo, hi = spec.attributes.get("base_min"), spec.attributes.get("base_max")
-        q = base_next_to(target, spec.home, obstacles, lo, hi, near=previous[robot], across_rings=across_rings)
+        q = base_next_to(target, spec.home, obstacles, lo, hi, near=previous[robot],
+                          across_rings=across_rings, radius=radii[robot])
         if q is not None:
             out[v] = q
             previous[robot] = q
     return out
 
 
-__all__ = ["restart_guesses", "base_next_to", "RADII", "ANGLES", "BASE_RADIUS"]
+__all__ = ["restart_guesses", "base_next_to", "base_radius", "RADII", "ANGLES", "BASE_RADIUS"]

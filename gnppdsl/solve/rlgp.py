@@ -121,8 +121,12 @@ class ReachabilityCosts:
         starts R-LGP solved 10/10 with a mean base path of 4.42 m against plain GNPP's 3.36 m
         (instances 4, 6, 8: 5.32, 6.10, 7.99 m against 2.20, 2.12, 3.35 m); without them 9/10
         (instance 1 verification_failed after the active set's last round), 3.08 m mean on the
-        9 against GNPP's 3.10 m. The placement's rings and footprint (`compile.placement`:
-        RADII, BASE_RADIUS 0.3 m) are the Panda's; the PR2's base is 0.67 m square."""
+        9 against GNPP's 3.10 m. The placement's footprint and rings were the Panda's (0.3 m);
+        they are now the robot's own (`compile.placement.base_radius`: the PR2's 0.45 m, rings
+        0.70-1.10 m): instances 1, 4, 6 went 3.87, 5.32, 6.10 -> 4.17, 4.28, 4.97 m, all
+        verified. Still above GNPP on 4 and 6: the least-travel side of the second pick is
+        west of blue1, from where the NLP slides the base to the north side and the drop is
+        made from the north (GNPP makes all four from the south)."""
         if self.options.algorithm != "rlgp" or not self.reach:
             return
         from gnppdsl.compile.placement import restart_guesses

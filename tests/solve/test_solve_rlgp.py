@@ -117,10 +117,42 @@ def test_rlgp_keyframes_start_next_to_what_they_act_on():
 def test_placement_across_rings_is_the_least_travel():
     """`base_next_to(..., across_rings=True)` (R-LGP's keyframe starts): the free ring point
     nearest the previous base over every ring; without it (the restarts), the innermost ring's."""
-    from gnppdsl.compile.placement import RADII, base_next_to
+    from gnppdsl.compile.placement import BASE_RADIUS, RADII, base_next_to
 
     home = [0.0, -2.0, 0.0, 0.1]
     inner = base_next_to([0.0, 0.0], home, [])
     least = base_next_to([0.0, 0.0], home, [], across_rings=True)
-    assert np.allclose(inner[:2], [0.0, -min(RADII)]) and np.allclose(least[:2], [0.0, -max(RADII)])
+    assert np.allclose(inner[:2], [0.0, -(BASE_RADIUS + min(RADII))])
+    assert np.allclose(least[:2], [0.0, -(BASE_RADIUS + max(RADII))])
     assert np.isclose(least[2], np.pi / 2) and least[3:] == home[3:]      # facing the target, arm at home
+
+
+def test_placement_uses_the_robots_own_footprint():
+    """`base_radius`: the footprint of the placement's free check and rings is the robot's base
+    link (its collision hull's x-y extent) plus `base_clearance`: the Panda's 0.3 m as before,
+    the PR2's 0.67 m square platform 0.45 m; a PR2 base placed next to an object near the edge
+    of the central table clears the table by that footprint, not the Panda's."""
+    import math
+    from pathlib import Path
+
+    from gnppdsl.compile.placement import _yaw, base_next_to, base_radius
+    from gnppdsl.ir.scene import load_scene_file
+
+    root = Path(__file__).resolve().parents[2] / "examples" / "mobile"
+    panda = load_scene_file(root / "sorting_setting.yaml")
+    pr2 = load_scene_file(root / "sorting_pr2_setting.yaml")
+    assert base_radius(panda.robots["mm"]) == pytest.approx(0.305, abs=0.01)
+    r = base_radius(pr2.robots["mm"])
+    assert r == pytest.approx(0.45, abs=0.01)
+    obstacles = [o for o in pr2.objects.values() if o.static and len(o.pose) >= 7]
+    spec = pr2.robots["mm"]
+    for target in ([0.0, -0.35, 0.55], [0.5, 0.0, 0.55], [-1.8, 0.1, 0.55]):
+        q = base_next_to(target, spec.home, obstacles, spec.attributes["base_min"],
+                         spec.attributes["base_max"], near=spec.home, across_rings=True, radius=r)
+        assert q is not None
+        for o in obstacles:                       # the disc of r clears every table's rectangle
+            t = _yaw(o.pose[3:7])
+            dx, dy = q[0] - o.pose[0], q[1] - o.pose[1]
+            lx, ly = math.cos(t) * dx + math.sin(t) * dy, -math.sin(t) * dx + math.cos(t) * dy
+            gap = math.hypot(max(abs(lx) - o.shape.size[0] / 2, 0), max(abs(ly) - o.shape.size[1] / 2, 0))
+            assert gap >= r - 1e-9, (target, o.name, q[:2], gap)
