@@ -51,6 +51,13 @@ Conflict = tuple[PartialState, ...]
 BUDGET = 64
 """Default NLPs per learned conflict spent on renamed candidates (`SolveOptions.batch_conflicts`)."""
 
+EAGER_SHARE = 0.5
+"""Lazy batch: a conflict's first candidates are still decided at once, for at most this share
+of the CPU time its plan's attempt has cost; the rest are queued (`Batcher.pending`). Why: where
+a loop iteration is dear and candidates cheap (lab5_paper: 5-8 s per plan, 0.05-0.1 s per
+candidate) the eager batch saved plans; where candidates cost as much as a plan (field2:
+0.25-0.4 s each with restarts, ~1 s per plan) it only added NLPs."""
+
 FACTORY_FACTOR = 4
 """Renamings built with the factory per conflict, at most FACTORY_FACTOR * budget (a renaming
 that is cached, known or has no image costs no NLP but still a factory call)."""
@@ -102,6 +109,46 @@ class Batcher:
     stats: BatchStats = field(default_factory=BatchStats)
     verdicts: dict = field(default_factory=dict)  # Candidate.key -> feasible (bool)
     reachable: Reachable | None = None            # the screen (None: every candidate is solved)
+    lazy: bool = False                            # queue candidates until a plan holds one (`pending`)
+    pending: list = field(default_factory=list)   # lazy: (origin, Candidate), not decided yet
+    origins: int = 0                              # lazy: conflicts whose candidates were queued
+    deferred: Candidate | None = None             # lazy: taken from the iterator, not decided (`Run.batch`)
+
+    def queue(self, cands: Iterator[Candidate], known: Sequence[Conflict]) -> int:
+        """Lazy batch: keep up to `budget` undecided candidates of one conflict (not cached, not
+        subsumed by a known conflict) in `pending`, under a new origin; their number."""
+        self.origins += 1
+        n = 0
+        for cand in cands:
+            if n >= self.budget:
+                break
+            if cand.key in self.verdicts or subsumed(cand.conflict, known):
+                continue
+            self.pending.append((self.origins, cand))
+            n += 1
+        return n
+
+    def hits(self, states: Sequence[State], shapes=None) -> Iterator[tuple[int, Candidate, int | None]]:
+        """Lazy batch: the pending candidates whose partial states the plan with these states
+        holds, as (origin, candidate, offset), each taken out of `pending` when yielded. With
+        `shapes` (candidate -> further sequences its learning forbids, e.g. its interleaved
+        instances) a candidate is also yielded, with offset None, when the plan holds one of them."""
+        from gnppdsl.logic.validate import find_sequence
+
+        for item in list(self.pending):
+            origin, cand = item
+            offset = find_sequence(states, cand.conflict)
+            if offset is None and not (shapes is not None and any(
+                    find_sequence(states, seq) is not None for seq in shapes(cand))):
+                continue
+            self.pending.remove(item)
+            yield origin, cand, offset
+
+    def siblings(self, origin: int) -> list[Candidate]:
+        """Lazy batch: take out of `pending` the candidates queued with `origin`."""
+        out = [c for o, c in self.pending if o == origin]
+        self.pending = [(o, c) for o, c in self.pending if o != origin]
+        return out
 
     def candidates(self, states: Sequence[State], factors: Sequence[FactorInstance],
                    plan_names: Sequence[str] = (), lifted: dict | None = None) -> Iterator[Candidate]:

@@ -40,6 +40,17 @@ from gnppdsl.logic.planner import DEFAULT_MAX_HORIZON, IncrementalPlanner, Plan,
 # horizons 0..10 in 1.9 s, horizon 11 alone 10 s).
 SWITCH_AFTER = 2.0
 WALL_FACTOR = 4.0      # ... but at most 8 s of wall time (a machine shared by many processes)
+# ... the switch itself: clasp conflicts per `shortest_plan` call (summed over its horizons), a
+# count that does not depend on the machine's load. Why not the CPU budget alone: its wall cap
+# decided under load (2 cores, load 4-8: 2 s CPU took more than 8 s of wall time), so the same
+# problem switched at different calls (lab5_paper's first call, horizons 0..12: 19k conflicts,
+# 1.6 s CPU idle; work5's: 40k, 1.3 s) and its plans, N and CPU time varied from run to run.
+# Calibrated on the first calls (conflicts per CPU second, clingo 5.8): lab5_paper 13k, work5
+# 31k, clutter_1 14k, stack_16 4.6k; 45000 keeps the idle machine's choices on the Lab and
+# Workshop problems (both first calls stay in clingo; work5 switched to Fast Downward cost 69 s CPU in a loaded sweep against 21-27 s idle). SWITCH_AFTER x SAFETY_FACTOR CPU seconds
+# remain as a safety cap (grounding counts no conflicts; stack_16: 4.6k conflicts per second).
+SWITCH_CONFLICTS = 45000
+SAFETY_FACTOR = 4.0
 # wall seconds of Fast Downward's first turn in a call after the switch; then clingo gets as
 # long, resuming at the horizon it reached, and each further pair of turns doubles. Why: a
 # greedy search has no progress to keep and can run for minutes where a plan exists (lab5_paper
@@ -58,10 +69,11 @@ class AutoPlanner:
     is the sequential planner."""
 
     def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON,
-                 switch_after: float = SWITCH_AFTER) -> None:
+                 switch_after: float = SWITCH_AFTER, switch_conflicts: int | None = SWITCH_CONFLICTS) -> None:
         self.task = task
         self.max_horizon = max_horizon
         self.switch_after = switch_after
+        self.switch_conflicts = switch_conflicts   # None: the CPU budget alone (SWITCH_AFTER)
         self.sequential = IncrementalPlanner(task, max_horizon=max_horizon)
         self.fd: FastDownwardPlanner | None = None
         self.switched_at: int | None = None    # number of shortest_plan calls before the switch
@@ -136,18 +148,28 @@ class AutoPlanner:
         # Downward always gets its turn; clingo's limit is wall time, so it runs in slices of what
         # is left (wall >= CPU: a slice never overspends) and resumes at the horizon it reached,
         # keeping its learned nogoods
-        wall_cap = WALL_FACTOR * self.switch_after
+        # With `switch_conflicts` the switch is decided by clasp's conflicts (the same on any
+        # load), the CPU budget scaled by SAFETY_FACTOR and the wall cap by it too only guard
+        # against a call that spends its time grounding or waiting.
+        scale = 1.0 if self.switch_conflicts is None else SAFETY_FACTOR
+        cpu_cap = scale * self.switch_after
+        wall_cap = scale * WALL_FACTOR * self.switch_after
         if time_limit is not None:
             wall_cap = min(wall_cap, time_limit / 2)
         res: PlanResult | None = None
-        while True:
-            left = min(self.switch_after - (time.process_time() - cpu0), wall_cap - (time.perf_counter() - start))
-            if left <= 0.01:
-                break
-            res = self.sequential.shortest_plan(max_horizon, left, minimize_cost)
-            if res.status is not Status.TIMEOUT:
-                res.time = time.perf_counter() - start
-                return res
+        self.sequential.conflict_budget = self.switch_conflicts if self.switch_after > 0 else None
+        try:
+            while True:
+                left = min(cpu_cap - (time.process_time() - cpu0), wall_cap - (time.perf_counter() - start))
+                if left <= 0.01 or (self.sequential.conflict_budget is not None
+                                    and self.sequential.conflict_budget <= 0):
+                    break
+                res = self.sequential.shortest_plan(max_horizon, left, minimize_cost)
+                if res.status is not Status.TIMEOUT:
+                    res.time = time.perf_counter() - start
+                    return res
+        finally:
+            self.sequential.conflict_budget = None
         if time_limit is not None and time.perf_counter() - start >= time_limit:
             return res or PlanResult(Status.TIMEOUT, None, 0, time.perf_counter() - start,
                                      f"time limit of {time_limit:g} s reached for task {self.task.name}")
@@ -155,7 +177,8 @@ class AutoPlanner:
         rest = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - start))
         out = self._alternate(max_horizon, rest)
         out.time = time.perf_counter() - start
-        out.message += f" (after {self.switch_after:g} s CPU of clingo without a plan)"
+        out.message += (f" (after {self.switch_after:g} s CPU of clingo without a plan)" if self.switch_conflicts is None
+                        else f" (after {self.switch_conflicts} clasp conflicts without a plan, or {cpu_cap:g} s CPU)")
         return out
 
     def _alternate(self, max_horizon: int | None, time_limit: float | None) -> PlanResult:

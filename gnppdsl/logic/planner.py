@@ -90,6 +90,7 @@ class PlannerStats:
     ground_time: float = 0.0
     solve_time: float = 0.0                     # wall time inside clingo's solve calls
     clingo_solve_time: float = 0.0              # clingo's own search time (statistics=True)
+    conflicts: int = 0                          # clasp conflicts of solve calls under a conflict budget
 
     def count(self, program: str) -> int:
         """How often program part `program` was grounded (any parameters)."""
@@ -123,6 +124,7 @@ class IncrementalPlanner(LearnedConstraints):
         self._externals: dict[clingo.Symbol, bool] = {}
         self._horizon = 0            # steps grounded: 1..horizon
         self._lowest = 0             # smallest horizon that may still hold a plan
+        self.conflict_budget: int | None = None   # clasp conflicts left for solve calls (None: no limit)
         self._ground([("base", ()), ("check", (0,))])
 
     # ---- grounding ---------------------------------------------------------------------
@@ -219,8 +221,13 @@ class IncrementalPlanner(LearnedConstraints):
         """One solve call; returns (status, list of model symbols (best last), proven optimal).
 
         Runs asynchronously and polls, so the time limit and Ctrl-C interrupt the search; the
-        handle's context manager always closes the solve, leaving the control usable.
+        handle's context manager always closes the solve, leaving the control usable. With a
+        `conflict_budget` (set by `shortest_plan`) clasp stops after that many conflicts
+        (`--solve-limit`, a TIMEOUT like the time limit) and the budget shrinks by the
+        conflicts the call used: a limit that does not depend on the machine's load.
         """
+        budget = self.conflict_budget
+        self._ctl.configuration.solve.solve_limit = "umax,umax" if budget is None else str(max(1, budget))
         found: list = []
         proven = [False]
 
@@ -247,6 +254,10 @@ class IncrementalPlanner(LearnedConstraints):
             self.stats.solve_time += time.perf_counter() - t0
         if self._statistics:
             self.stats.clingo_solve_time += self._ctl.statistics["summary"]["times"]["solve"]
+        if budget is not None:
+            used = int(self._ctl.statistics["solving"]["solvers"]["conflicts"])
+            self.conflict_budget = budget - used
+            self.stats.conflicts += used
         if result.interrupted or not (result.satisfiable or result.unsatisfiable):
             return Status.TIMEOUT, found, False
         if result.satisfiable:
@@ -288,7 +299,8 @@ class IncrementalPlanner(LearnedConstraints):
         H = self.max_horizon if max_horizon is None else max_horizon
         h = self._lowest
         while h <= H:
-            if deadline is not None and time.perf_counter() >= deadline:
+            if deadline is not None and time.perf_counter() >= deadline \
+                    or self.conflict_budget is not None and self.conflict_budget <= 0:
                 return self._timeout(h, start, time_limit), []
             if not self._extend_to(h, deadline):
                 return self._timeout(h, start, time_limit), []
@@ -377,6 +389,7 @@ class IncrementalPlanner(LearnedConstraints):
         return f"no plan up to horizon {H} for task {self.task.name}{self._under()}"
 
     def _timeout(self, h: int, start: float, limit: float | None) -> PlanResult:
+        what = "the conflict budget ran out" if self.conflict_budget is not None and self.conflict_budget <= 0 \
+            else f"time limit of {limit:g} s reached"
         return PlanResult(Status.TIMEOUT, None, h, time.perf_counter() - start,
-                          f"time limit of {limit:g} s reached at horizon {h} for task "
-                          f"{self.task.name} (no plan shorter than {h})")
+                          f"{what} at horizon {h} for task {self.task.name} (no plan shorter than {h})")

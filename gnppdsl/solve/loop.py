@@ -73,9 +73,12 @@ class Loop(Anytime):
         """Fig. 3, steps 2-4 on one plan: its verified Result (solved or not), or None when the
         plan gave a conflict (handed to the planner) or was blocked."""
         self.stats.plans += 1
+        self.attempt_cpu = time.process_time()     # the lazy batch's eager share (`Run.batch`)
         if self.stats.N0 is None:
             self.stats.N0 = len(plan)
         self.say(f"plan #{self.stats.plans} (length {len(plan)}): {', '.join(plan.names) or '(empty)'}")
+        if self.batch_hit(plan):           # a queued renamed candidate it holds is infeasible
+            return None
         graph = self.build_graph(plan.states)
         if self.db is not None:
             known = self.db.infeasible_inside(graph)

@@ -107,6 +107,15 @@ class SolveOptions:
                                      # factors, 45 per keyframe, and its per-arm reach conflicts are
                                      # one loop iteration each without the batch: work1 9 -> 3
                                      # plans, 12.1 -> 5.7 s CPU; planar keyframes have 3-15)
+    batch_lazy: bool = True          # ... the renamed candidates are queued, and one is solved only
+                                     # when a proposed plan contains its partial states (then, if
+                                     # infeasible, it is that plan's conflict, no graph-NLP built,
+                                     # and the other candidates of its conflict are decided at once);
+                                     # False: every candidate solved when its conflict is learned.
+                                     # The first candidates are still decided at once for half
+                                     # the CPU of the conflict's plan (`batch.EAGER_SHARE`).
+                                     # field2 13.9 -> 5.2-7.7 s CPU, work2 19.2 -> 11.4 (seed 0;
+                                     # docs/design.md, "Lazy batch")
     stretch_conflicts: bool = False  # gnpp, with interleave_conflicts: transitions of `preorder`-tagged
                                      # templates (tools.push_motion) are chain links too, so a push held
                                      # over several steps is learned for every length

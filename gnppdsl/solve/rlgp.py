@@ -115,7 +115,14 @@ class ReachabilityCosts:
         verified; with the innermost ring's placement instead, 2.31 m and 14.5 s, but sort2
         (plan from the travel costs) drove 2.11 m with an active-set round more (1.96 m here,
         2.07 m from home) and sort_random_pr2 instance 0 7.40 m (3.04 m here, 4.10 m from
-        home). Plain GNPP keeps the home start (the baseline R-LGP is compared with)."""
+        home). Plain GNPP keeps the home start (the baseline R-LGP is compared with).
+
+        Open (measured on sort_random_pr2 instances 0-9, seed 0, loaded machine): with these
+        starts R-LGP solved 10/10 with a mean base path of 4.42 m against plain GNPP's 3.36 m
+        (instances 4, 6, 8: 5.32, 6.10, 7.99 m against 2.20, 2.12, 3.35 m); without them 9/10
+        (instance 1 verification_failed after the active set's last round), 3.08 m mean on the
+        9 against GNPP's 3.10 m. The placement's rings and footprint (`compile.placement`:
+        RADII, BASE_RADIUS 0.3 m) are the Panda's; the PR2's base is 0.67 m square."""
         if self.options.algorithm != "rlgp" or not self.reach:
             return
         from gnppdsl.compile.placement import restart_guesses

@@ -94,11 +94,12 @@ def small_regions_named(texts) -> set[str]:
 def test_small_regions_of_other_sizes_are_learned_in_one_batch(tmp_path):
     """The first conflict about a small region brings the other small regions with it (their
     renamed subgraphs are infeasible NLPs), never the large region; without the batch lifting
-    cannot rename the regions (other sizes), so the first such conflict names one region only."""
+    cannot rename the regions (other sizes), so the first such conflict names one region only.
+    (The eager batch, batch_lazy=False: `test_lazy_batch_...` has the default.)"""
     compiled = gnppdsl.load_and_compile(str(uneven_family(tmp_path)))
     first = {}
     for budget in (0, 32):
-        r = solve(compiled, batch_conflicts=budget)
+        r = solve(compiled, batch_conflicts=budget, batch_lazy=False)
         assert r.status == "solved" and r.stats.N == 8 and verify(compiled, r).ok
         hit = next(c for c in r.conflicts if small_regions_named([c.text]))
         first[budget] = small_regions_named([hit.text, *hit.instances, *hit.batched])
@@ -114,6 +115,32 @@ def test_small_regions_of_other_sizes_are_learned_in_one_batch(tmp_path):
     for region in SMALL:
         assert not place_feasible(compiled, "c1", "sc1", region)
     assert place_feasible(compiled, "c1", "sc1", "big")
+
+
+def test_lazy_batch_decides_a_renaming_when_a_plan_holds_it(tmp_path, monkeypatch):
+    """Lazy batch (the default), with no candidate decided at once (EAGER_SHARE 0; by default
+    the first ones are, for half the CPU of the conflict's plan, which on this small family
+    is all of them): the first conflict about a small region learns no renaming;
+    the next plan that puts the blocker into another small region is refused by that queued
+    renaming (source "batch", no graph-NLP of the plan), which brings the third small region
+    with it -- the same regions as the eager batch, one plan later, and fewer candidate NLPs
+    (those no plan holds are never solved). Every conflict holds in the plan it came from
+    (`add_conflict` asserts it), and the solution is verified."""
+    from gnppdsl.solve import run
+
+    compiled = gnppdsl.load_and_compile(str(uneven_family(tmp_path)))
+    eager = solve(compiled, batch_conflicts=32, batch_lazy=False)
+    monkeypatch.setattr(run, "EAGER_SHARE", 0.0)
+    lazy = solve(compiled, batch_conflicts=32)
+    for r in (lazy, eager):
+        assert r.status == "solved" and r.stats.N == 8 and verify(compiled, r).ok
+    regions = [c for c in lazy.conflicts if small_regions_named([c.text])]
+    assert len(small_regions_named([regions[0].text, *regions[0].instances, *regions[0].batched])) == 1
+    assert regions[1].source == "batch", [(c.source, c.text) for c in lazy.conflicts]
+    assert small_regions_named([t for c in regions[:2] for t in (c.text, *c.instances, *c.batched)]) == set(SMALL)
+    assert not [t for c in lazy.conflicts for t in c.batched if re.search(r"\{parent\(\w+\) = (big|side)\}", t)]
+    assert 0 < lazy.stats.batch_candidates < eager.stats.batch_candidates
+    assert lazy.stats.nlp_solves < eager.stats.nlp_solves
 
 
 def test_batch_learned_conflicts_never_forbid_a_feasible_plan(tmp_path):

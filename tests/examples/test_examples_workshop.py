@@ -321,14 +321,17 @@ def test_work1_learns_the_reach_of_every_arm_from_one_plan(work1_solved):
     it from the table (a 2-action plan's graph: 136 factors, below `batch_min_factors` but above
     `batch_min_keyframe_factors` per keyframe) brings the other three arms with it as
     batch-learned instances, instead of one arm per plan; the stick, which arm_s reaches, is
-    never forbidden to arm_s."""
+    never forbidden to arm_s. (Lazy batch, the default: the renamings are decided when the
+    second plan picks b1 with another arm, a conflict without that plan's graph-NLP, and then
+    all at once.)"""
     _, r = work1_solved
     assert r.status == "solved", r.message
     for arm in ARMS:
         assert _ik_error(arm, _xyz(SCENE, "b1"), top=False) > 0.05, arm
-    first = next(c for c in r.conflicts if c.text.startswith("{parent(b1) = table, not moved(b1)} -> {parent(b1) = arm_"))
-    named = {a for t in (first.text, *first.instances, *first.batched) for a in ARMS if f"= {a}}}" in t}
-    assert named == set(ARMS), (first.text, first.batched)
+    reach = [c for c in r.conflicts if c.text.startswith("{parent(b1) = table, not moved(b1)} -> {parent(b1) = arm_")]
+    assert len(reach) <= 2 and (len(reach) == 1 or reach[1].source == "batch"), [c.text for c in reach]
+    named = {a for c in reach for t in (c.text, *c.instances, *c.batched) for a in ARMS if f"= {a}}}" in t}
+    assert named == set(ARMS), [(c.text, c.batched) for c in reach]
     learned = [t for c in r.conflicts for t in (c.text, *c.instances, *c.batched)]
     assert "{parent(stick) = table, not moved(stick)} -> {parent(stick) = arm_s}" not in learned
     assert r.plan[0] == "pick(stick, arm_s, table)"
