@@ -309,3 +309,24 @@ def test_a_plans_relaxation_levels_before_its_full_graph_are_screened(monkeypatc
     plain = _solved(options)
     assert not [g.name for g, _ in seen if g.name.startswith("G[no_") and "{screened" in g.name]
     assert res.plan == plain.plan and len(res.conflicts) == len(plain.conflicts)
+
+
+def test_a_screened_level_that_fails_gets_no_second_try_with_the_curvature(monkeypatch):
+    """With `distance_curvature = false`, a screened relaxation level (`plan_level`) that fails
+    is solved whole at once, without the second screened run with the distances' curvature
+    that the keyframes get (the first plan's no_time_traj level of the toy is infeasible)."""
+    _screen_everything(monkeypatch)
+    monkeypatch.setattr(screening, "SCREEN_KEYFRAMES_MIN", 10 ** 9)
+    real = FeasibilityCheck.screened_solve
+    calls = []
+
+    def spy(self, sub, point, distance_curvature=False):
+        r = real(self, sub, point, distance_curvature=distance_curvature)
+        calls.append((sub.name, distance_curvature, r.feasible))
+        return r
+
+    monkeypatch.setattr(FeasibilityCheck, "screened_solve", spy)
+    _solved(replace(OPTIONS, order="relaxed_first", distance_curvature=False))
+    level = [c for c in calls if c[0].startswith("G[no_time_traj]{screened")]
+    assert level and [c for c in level if not c[2]], calls
+    assert not [c for c in level if c[1]], level
