@@ -149,7 +149,7 @@ def test_a_put_is_placed_on_the_side_nearest_where_the_base_stood_before_it(tmp_
                if v.kind == "q"}
     pick, put = by_step[1], by_step[2]
     assert pick[1] > 0.45 + 0.29                                   # north of the central table
-    assert put[:2] == pytest.approx([1.05, 0.9])                   # west of the tray: nearest the pick's base
+    assert put[:2] == pytest.approx([1.05, 0.9], abs=0.01)         # west of the tray (ring 0.555 m): nearest the pick's base
     assert abs(math.remainder(put[2], 2 * math.pi)) < 1e-9         # facing east, the tray
     # from the home base the same tray gets its south side (the choice before)
     home = c.problem.scene.robots["mm"].home
