@@ -54,7 +54,11 @@ SWITCH_CONFLICTS = 45000
 # seed 0 the same plans, 45.6 against 40.4 s CPU (logic 14.4 against 10.2: calls that stay in
 # clingo past 2 s CPU); seed 1 the CPU criterion took another path (the wall cap decided) and
 # cost 62.8 s against 59.0. Left to calibrate: a budget per problem size rather than one count.
-SAFETY_FACTOR = 4.0
+# The CPU cap is SWITCH_AFTER x SAFETY_FACTOR = 3 s: twice lab5_paper's first call (1.6 s idle),
+# so load does not reach it there, while a call whose conflicts come slowly (a large grounding:
+# stack_16, 4.6k per second) still switches after 3 s. At 4.0 (8 s) stack_16's first call stayed
+# 8 s in clingo: its logic 3.1 -> 8.0 s CPU (seed 0, same 2 plans).
+SAFETY_FACTOR = 1.5
 # wall seconds of Fast Downward's first turn in a call after the switch; then clingo gets as
 # long, resuming at the horizon it reached, and each further pair of turns doubles. Why: a
 # greedy search has no progress to keep and can run for minutes where a plan exists (lab5_paper
