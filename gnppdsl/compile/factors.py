@@ -16,7 +16,7 @@ Nothing here solves anything; the nlp layer turns each `body` into a casadi Func
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from gnppdsl.compile.sas import PartialState
 from gnppdsl.ir.expr import Constraint
@@ -73,3 +73,8 @@ class FactorInstance:
     @property
     def steps(self) -> tuple[int, ...]:
         return tuple(sorted({v.step for v in self.variables}))
+
+    def shifted(self, by: int) -> "FactorInstance":
+        """The same factor `by` steps later (its variables too): a subgraph moved along a plan."""
+        return replace(self, step=self.step + by,
+                       variables=tuple(replace(v, step=v.step + by) for v in self.variables))

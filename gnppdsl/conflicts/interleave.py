@@ -74,7 +74,6 @@ shortest first.
 from __future__ import annotations
 
 import itertools
-from dataclasses import replace
 from typing import Sequence
 
 from gnppdsl.compile.factors import FactorInstance
@@ -214,7 +213,7 @@ def merged(factors: Sequence[FactorInstance], preorder: bool = False,
 
 def _removed(current: tuple[FactorInstance, ...], drop, k: int) -> tuple[FactorInstance, ...]:
     """`current` without the factors `drop`, the steps from k on one earlier."""
-    return tuple(dict.fromkeys(f if f.step < k else _shift(f, -1) for f in current if f not in drop))
+    return tuple(dict.fromkeys(f if f.step < k else f.shifted(-1) for f in current if f not in drop))
 
 
 def _contractible(current: tuple[FactorInstance, ...], preorder: bool):
@@ -255,9 +254,6 @@ def _mergeable(current: tuple[FactorInstance, ...], preorder: bool):
 def _steps(f: FactorInstance) -> set[int]:
     return {v.step for v in f.variables} | {f.step + j for j in range(len(f.generator))}
 
-
-def _shift(f: FactorInstance, by: int) -> FactorInstance:
-    return replace(f, step=f.step + by, variables=tuple(replace(v, step=v.step + by) for v in f.variables))
 
 
 def stretched(factors: Sequence[FactorInstance], max_length: int, limit: int = LIMIT,

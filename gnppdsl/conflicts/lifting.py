@@ -31,7 +31,7 @@ most `limit`), no NLP.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
 from gnppdsl.compile.factors import FactorInstance
@@ -87,7 +87,7 @@ class Lifter:
         first = min(f.step for f in factors)
         last = first + len(original) - 1
         window = [tuple(s) for s in states[first:min(last + 3, len(states))]]
-        shifted = [_shift(f, -first) for f in factors]
+        shifted = [f.shifted(-first) for f in factors]
         pattern = anonymous_graph(shifted, self.object_key)
         objs = self._conflict_objects(factors, original)
         self.images = {original: tuple(shifted)}
@@ -131,7 +131,7 @@ class Lifter:
         first = min(f.step for f in factors)
         last = first + len(to_partial_states(factors)) - 1
         window = [tuple(s) for s in states[first:min(last + 3, len(states))]]
-        return window, [_shift(f, -first) for f in factors]
+        return window, [f.shifted(-first) for f in factors]
 
     def objects(self, factors: Sequence[FactorInstance]) -> list[str]:
         """The problem objects a conflict's factors name (bindings, bodies, variables, facts)."""
@@ -231,9 +231,6 @@ def _complete(mapping: dict[str, str]) -> dict[str, str]:
     perm.update(zip(free_targets, free_sources))
     return perm
 
-
-def _shift(f: FactorInstance, by: int) -> FactorInstance:
-    return replace(f, step=f.step + by, variables=tuple(replace(v, step=v.step + by) for v in f.variables))
 
 
 def _same_label(a: dict, b: dict) -> bool:

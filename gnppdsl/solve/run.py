@@ -93,6 +93,7 @@ class Run(ReachabilityCosts):
                                    options.batch_conflicts, reachable=Reachable(self.task),
                                    lazy=options.batch_lazy)
         self.batch_origin: int | None = None   # lazy batch: the origin of the candidate being learned
+        self.batch_shapes_memo: dict = {}       # lazy batch: Candidate.key -> its interleaved instances
         self.attempt_cpu = time.process_time()   # CPU clock when the current plan's attempt began
 
     def say(self, msg: str) -> None:
@@ -355,8 +356,6 @@ class Run(ReachabilityCosts):
         instance of); the first infeasible one is the plan's conflict (no graph-NLP), learned
         with the other candidates of its origin. Sound as the eager batch: the same candidates,
         decided by the same NLP, learned with the same instances."""
-        from gnppdsl.conflicts.lifting import _shift
-
         if self.batcher is None or not self.batcher.lazy or not self.batcher.pending:
             return False
         t0 = time.perf_counter()
@@ -369,7 +368,7 @@ class Run(ReachabilityCosts):
                 t0 = time.perf_counter()
                 try:
                     if offset is not None:
-                        self.add_conflict(plan, [_shift(f, offset) for f in cand.factors], "batch", "")
+                        self.add_conflict(plan, [f.shifted(offset) for f in cand.factors], "batch", "")
                     else:
                         self.learn_interleaved_hit(plan, cand)
                 finally:
@@ -384,7 +383,7 @@ class Run(ReachabilityCosts):
         """The interleaved instances of a queued candidate (`interleaved`, memoised per candidate)."""
         if not self.options.interleave_conflicts:
             return []
-        memo = self.__dict__.setdefault("_batch_shapes", {})
+        memo = self.batch_shapes_memo
         if cand.key not in memo:
             from gnppdsl.conflicts.interleave import stretched
 
