@@ -70,6 +70,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "base, an object staying put), so one geometric failure is not learned "
                              "again per interleaving of other actions. Default: the problem's solver "
                              "setting `interleave_conflicts`, else on")
+    parser.add_argument("--batch-lazy", action=argparse.BooleanOptionalAction, default=None,
+                        help="gnpp/rlgp: a conflict's renamings beyond the first ones are decided only "
+                             "when a proposed plan holds one (--no-batch-lazy: all when the conflict "
+                             "is learned). Default: the problem's solver setting `batch_lazy`, else on")
     parser.add_argument("--stretch-conflicts", action=argparse.BooleanOptionalAction, default=None,
                         help="gnpp/rlgp, with interleaved conflicts: transitions of `preorder`-tagged "
                              "templates (a push held over several steps) count as pass-through steps "
@@ -118,7 +122,7 @@ def _run(args: argparse.Namespace, start: float) -> int:
                 kinematic_curvature=args.kinematic_curvature, planner=args.planner,
                 active_set=args.active_set, optimise=args.optimise, anytime=args.anytime,
                 batch_conflicts=args.batch_conflicts, interleave_conflicts=args.interleave_conflicts,
-                stretch_conflicts=args.stretch_conflicts,
+                stretch_conflicts=args.stretch_conflicts, batch_lazy=args.batch_lazy,
             )
             limit = options.time_limit
             left = limit - (time.monotonic() - start)

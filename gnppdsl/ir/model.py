@@ -483,6 +483,8 @@ class SolverSettings:
     batch_conflicts
                 gnpp: NLPs per learned conflict spent deciding its renamings onto other objects
                 of the same type (`gnppdsl.conflicts.batch`; 0: off)
+    batch_lazy  gnpp: renamings beyond the first ones are decided only when a proposed plan holds
+                one (true); false: all when the conflict is learned
     interleave_conflicts
                 gnpp: a conflict also forbids its copies with steps inserted or removed where its
                 subgraph relates consecutive steps only by chain equalities (`gnppdsl.conflicts.interleave`)
@@ -509,6 +511,7 @@ class SolverSettings:
     optimise: bool = True
     anytime: float = 0.0
     batch_conflicts: int = 64
+    batch_lazy: bool | None = None
     interleave_conflicts: bool | None = None
     stretch_conflicts: bool | None = None
 
@@ -522,7 +525,7 @@ SOLVER_FIELDS: dict[str, type] = {
     "seed": int, "waypoints": int, "max_horizon": int, "max_iter": int, "database": str,
     "order": str, "jit": bool, "distance_curvature": bool,
     "kinematic_curvature": str, "planner": str, "optimise": bool,
-    "anytime": float, "batch_conflicts": int, "interleave_conflicts": bool, "stretch_conflicts": bool,
+    "anytime": float, "batch_conflicts": int, "batch_lazy": bool, "interleave_conflicts": bool, "stretch_conflicts": bool,
 }
 
 #: accepted ranges of the numeric solver settings and their command-line twins (inclusive).

@@ -136,7 +136,8 @@ class SolveOptions:
             kw = {}
             for name in ("algorithm", "switches", "time_limit", "seed", "max_horizon", "tolerance",
                          "database", "max_iter", "nlp", "order", "jit", "distance_curvature", "kinematic_curvature", "planner",
-                         "optimise", "anytime", "batch_conflicts", "interleave_conflicts", "stretch_conflicts"):
+                         "optimise", "anytime", "batch_conflicts", "batch_lazy", "interleave_conflicts",
+                         "stretch_conflicts"):
                 if hasattr(settings, name) and getattr(settings, name) is not None:
                     kw[name] = getattr(settings, name)
             base = replace(base, **kw)

@@ -207,23 +207,26 @@ def test_argparse_rejects_bad_choices_with_exit_2(capsys, argv):
 
 
 @pytest.mark.parametrize("setting, argv, expected", [
-    (None, [], (True, False)),                                      # SolveOptions' defaults
-    (None, ["--no-interleave-conflicts"], (False, False)),
-    (None, ["--stretch-conflicts"], (True, True)),
-    ("interleave_conflicts = true  stretch_conflicts = true", [], (True, True)),
-    ("interleave_conflicts = false", ["--interleave-conflicts"], (True, False)),   # the command line wins
-    ("interleave_conflicts = false", [], (False, False)),
+    (None, [], (True, False, True)),                                # SolveOptions' defaults
+    (None, ["--no-interleave-conflicts"], (False, False, True)),
+    (None, ["--stretch-conflicts"], (True, True, True)),
+    ("interleave_conflicts = true  stretch_conflicts = true", [], (True, True, True)),
+    ("interleave_conflicts = false", ["--interleave-conflicts"], (True, False, True)),   # the command line wins
+    ("interleave_conflicts = false", [], (False, False, True)),
+    (None, ["--no-batch-lazy"], (True, False, False)),
+    ("batch_lazy = false", [], (True, False, False)),
+    ("batch_lazy = false", ["--batch-lazy"], (True, False, True)),
 ])
 def test_conflict_generalisations_reach_the_loop_from_the_setting_and_the_command_line(
         tmp_path, monkeypatch, setting, argv, expected):
-    """`--interleave-conflicts` / `--stretch-conflicts` and the solver settings of the same names
+    """`--interleave-conflicts` / `--stretch-conflicts` / `--batch-lazy` and the solver settings of the same names
     arrive in the options the loop gets (the loop's use of them is tested in tests/conflicts)."""
     import gnppdsl
 
     seen = []
 
     def capture(compiled, options, progress=None):
-        seen.append((options.interleave_conflicts, options.stretch_conflicts))
+        seen.append((options.interleave_conflicts, options.stretch_conflicts, options.batch_lazy))
         raise KeyboardInterrupt
 
     problem = PLANAR / "p1_one_block.pntc"
