@@ -57,23 +57,10 @@ def base_radius(spec) -> float:
     link = getattr(spec, "links", {}).get("base")
     if not link:
         return BASE_RADIUS
-    import numpy as np
-    import pinocchio as pin
-
     from gnppdsl.geometry.robots import load_robot
-    from gnppdsl.geometry.shapes import shape_vertices
 
-    model = load_robot(spec)
-    c = np.asarray(spec.home, float).copy()
-    c[:3] = 0.0                                       # the planar joint at the origin
-    data = model.model.createData()
-    pin.framesForwardKinematics(model.model, data, model.to_pin_q(c))
-    T = data.oMf[model.frame_id(link)].homogeneous
-    r = 0.0
-    for g in model.links.get(link, []):
-        M = T @ g.placement
-        w = shape_vertices(g.shape) @ M[:3, :3].T + M[:3, 3]
-        r = max(r, float(np.hypot(w[:, 0], w[:, 1]).max()))
+    c = [0.0, 0.0, 0.0, *list(spec.home)[3:]]        # the planar joint at the origin
+    r = load_robot(spec).planar_radius(link, c)
     if r == 0.0:
         return BASE_RADIUS
     return r + float(spec.attributes.get("base_clearance", 0.0) or 0.0)
