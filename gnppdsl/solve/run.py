@@ -4,14 +4,13 @@ conflicts handed to the planner, the independent re-check of a solution and the 
 """
 from __future__ import annotations
 
-import itertools
 import time
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
-from gnppdsl.conflicts.batch import EAGER_SHARE, Batcher, Reachable, subsumed
+from gnppdsl.conflicts.batch import Batcher, Reachable
 from gnppdsl.conflicts.database import SubgraphDatabase, names_of
 from gnppdsl.conflicts.lifting import Lifter
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
@@ -23,6 +22,7 @@ from gnppdsl.solve.options import Progress, SolveOptions
 from gnppdsl.solve.path_length import path_lengths
 from gnppdsl.solve.plan_graph import bound_violation, plan_graph
 from gnppdsl.solve.result import NO_PLAN, SOLVED, SOLVER_FAILURE, TIME_LIMIT, Conflict, Result, Stats, steps_of
+from gnppdsl.solve.batch_run import BatchLearning
 from gnppdsl.solve.rlgp import ReachabilityCosts
 
 if TYPE_CHECKING:  # pragma: no cover  (clingo, casadi: imported when a solve starts)
@@ -30,7 +30,7 @@ if TYPE_CHECKING:  # pragma: no cover  (clingo, casadi: imported when a solve st
     from gnppdsl.nlp.feasibility import FeasibilitySolver
 
 
-class Run(ReachabilityCosts):
+class Run(ReachabilityCosts, BatchLearning):
     """What one solve holds while its loop runs (see the module docstring); the evaluation of
     a plan's graph (`plan_evaluation.PlanEvaluation`) and the loops (`loop.Loop`) derive from it."""
 
@@ -263,158 +263,6 @@ class Run(ReachabilityCosts):
                     have.add(inst)
                     out.append(inst)
         return out
-
-    def batch(self, plan: Plan, sub_factors: Sequence[FactorInstance], instances: Sequence) -> list:
-        """The conflict's renamed candidates that are infeasible (`gnppdsl.conflicts.batch`),
-        each decided by `decide`, at most `batch_conflicts` NLPs per conflict. Lazy batch
-        (option batch_lazy): none is decided now; they are queued for `batch_hit`, and only the
-        candidates queued with the conflict a hit came from (`batch_origin`) are decided now."""
-        assert self.batcher is not None
-        t0 = time.perf_counter()
-        known = [*self.planner.conflicts, *instances]
-        lifted = self.lifter.renamable if self.lifter is not None else None
-        cands = self.batcher.candidates(plan.states, sub_factors, list(plan.names), lifted)
-        try:
-            if not self.batcher.lazy:
-                return self.decide_candidates(cands, known)
-            out = []
-            if self.batch_origin is not None:     # the planner tries these renamings: decide them
-                out = self.decide_candidates(iter(self.batcher.siblings(self.batch_origin)), known)
-            # the first candidates (the likeliest: `Batcher.candidates` order) decided now, for
-            # at most EAGER_SHARE of the CPU the plan that gave the conflict has cost so far
-            spent = time.process_time() - self.attempt_cpu
-            self.batcher.deferred = None
-            out += self.decide_candidates(cands, known, cpu_limit=EAGER_SHARE * spent)
-            deferred = self.batcher.deferred
-            self.batcher.queue(cands if deferred is None else itertools.chain([deferred], cands), known)
-            return out
-        finally:
-            self.batcher.stats.time += time.perf_counter() - t0
-            self.stats.batch_time = self.batcher.stats.time
-
-    def decide_candidates(self, cands: Iterable, known: list, cpu_limit: float | None = None) -> list:
-        """The infeasible candidates among `cands` (at most `batch_conflicts` NLPs), each with
-        its symmetric instances (`Lifter`: the same NLP, no solve); `known` grows by them.
-        `cpu_limit`: stop after the candidate that reaches that many CPU seconds (the others
-        stay in the iterator)."""
-        stats, out, solved = self.batcher.stats, [], 0
-        cpu0 = time.process_time()
-        for cand in cands:
-            if cpu_limit is not None and time.process_time() - cpu0 >= cpu_limit:
-                self.batcher.deferred = cand      # not decided: queued by the caller
-                break
-            if subsumed(cand.conflict, known):
-                continue                   # forbidden already: nothing to learn
-            if cand.key not in self.batcher.verdicts:
-                if solved >= self.batcher.budget:
-                    break
-                solved += 1
-            if self.decide(cand):
-                continue
-            found = [cand.conflict]
-            self.images.setdefault(cand.conflict, cand.factors)
-            if self.lifter is not None:
-                found = self.lifter.instances(cand.states, cand.factors)
-                for k, v in self.lifter.images.items():
-                    self.images.setdefault(k, v)
-            for seq in found:
-                if not subsumed(seq, known):
-                    out.append(seq)
-                    known.append(seq)
-        stats.learned += len(out)
-        self.stats.batch_learned = stats.learned
-        return out
-
-    def decide(self, cand) -> bool:
-        """Is a renamed candidate feasible? From the cache of earlier candidates, the subgraph
-        database (switch g), or one NLP with the solver's restarts (`infeasible`, as a minimised
-        conflict's subgraph is decided)."""
-        from gnppdsl.nlp.graph import GraphNLP
-
-        stats = self.batcher.stats
-        feasible = self.batcher.verdicts.get(cand.key)
-        graph = None
-        if feasible is None and self.db is not None:
-            graph = GraphNLP(list(cand.factors))
-            answer = self.db.lookup(graph)
-            feasible = None if answer is None else bool(answer)
-        if feasible is not None:
-            stats.cached += 1
-        else:
-            stats.candidates += 1
-            feasible = not self.infeasible(self.new_solver(), cand.factors, self.options.seed)
-            if self.db is not None:
-                self.db.add(graph or GraphNLP(list(cand.factors)), feasible,
-                            None if feasible else names_of(self.task, cand.conflict))
-        self.batcher.verdicts[cand.key] = feasible
-        self.stats.batch_candidates, self.stats.batch_cached = stats.candidates, stats.cached
-        self.stats.batch_unreachable = stats.unreachable
-        return feasible
-
-    def batch_hit(self, plan: Plan) -> bool:
-        """Lazy batch: decide the queued candidates this plan holds (or holds an interleaved
-        instance of); the first infeasible one is the plan's conflict (no graph-NLP), learned
-        with the other candidates of its origin. Sound as the eager batch: the same candidates,
-        decided by the same NLP, learned with the same instances."""
-        if self.batcher is None or not self.batcher.lazy or not self.batcher.pending:
-            return False
-        t0 = time.perf_counter()
-        try:
-            for origin, cand, offset in self.batcher.hits(plan.states, self.batch_shapes):
-                if self.decide(cand):
-                    continue
-                self.batch_origin = origin
-                self.batcher.stats.time += time.perf_counter() - t0
-                t0 = time.perf_counter()
-                try:
-                    if offset is not None:
-                        self.add_conflict(plan, [f.shifted(offset) for f in cand.factors], "batch", "")
-                    else:
-                        self.learn_interleaved_hit(plan, cand)
-                finally:
-                    self.batch_origin = None
-                return True
-            return False
-        finally:
-            self.batcher.stats.time += time.perf_counter() - t0
-            self.stats.batch_time = self.batcher.stats.time
-
-    def batch_shapes(self, cand) -> list:
-        """The interleaved instances of a queued candidate (`interleaved`, memoised per candidate)."""
-        if not self.options.interleave_conflicts:
-            return []
-        memo = self.batch_shapes_memo
-        if cand.key not in memo:
-            from gnppdsl.conflicts.interleave import stretched
-
-            memo[cand.key] = stretched(cand.factors, self.options.max_horizon + 1,
-                                       preorder=bool(self.options.stretch_conflicts))[1:]
-        return memo[cand.key]
-
-    def learn_interleaved_hit(self, plan: Plan, cand) -> None:
-        """A plan holds an interleaved instance of an infeasible queued candidate: learn the
-        candidate (with its symmetric and interleaved instances, and its origin's other
-        candidates, as `add_conflict` does for one the plan holds itself)."""
-        from gnppdsl.logic.validate import find_sequence
-
-        known = list(self.planner.conflicts)
-        found = self.decide_candidates(iter([cand]), known)      # its verdict is cached: no NLP
-        found += self.decide_candidates(iter(self.batcher.siblings(self.batch_origin)), known)
-        interleaved = self.interleaved(found)
-        new = self.planner.add_lifted(found + interleaved)
-        if not new or not any(find_sequence(plan.states, s) is not None for s in found + interleaved):
-            self.planner.block_plan(plan)       # it holds an infeasible instance: never again
-        seq = cand.conflict
-        c = Conflict(seq, conflict_str(self.task, seq), tuple(f.label for f in cand.factors), "batch",
-                     "", self.stats.plans, 0, named=names_of(self.task, seq),
-                     instances=tuple(conflict_str(self.task, s) for s in found[1:]), subgraph=cand.factors,
-                     batched=(), interleaved=tuple(conflict_str(self.task, s) for s in interleaved))
-        self.conflicts.append(c)
-        self.stats.conflicts += 1
-        self.stats.conflict_instances += new
-        self.stats.interleaved_instances += len(interleaved)
-        self.say(f"  conflict (batch, interleaved in the plan): {c.text} (+{len(found) - 1} instances)"
-                 f" (+{len(interleaved)} interleaved)")
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.finish_stats()

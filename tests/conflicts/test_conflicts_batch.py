@@ -126,11 +126,11 @@ def test_lazy_batch_decides_a_renaming_when_a_plan_holds_it(tmp_path, monkeypatc
     with it -- the same regions as the eager batch, one plan later, and fewer candidate NLPs
     (those no plan holds are never solved). Every conflict holds in the plan it came from
     (`add_conflict` asserts it), and the solution is verified."""
-    from gnppdsl.solve import run
+    from gnppdsl.solve import batch_run
 
     compiled = gnppdsl.load_and_compile(str(uneven_family(tmp_path)))
     eager = solve(compiled, batch_conflicts=32, batch_lazy=False)
-    monkeypatch.setattr(run, "EAGER_SHARE", 0.0)
+    monkeypatch.setattr(batch_run, "EAGER_SHARE", 0.0)
     lazy = solve(compiled, batch_conflicts=32)
     for r in (lazy, eager):
         assert r.status == "solved" and r.stats.N == 8 and verify(compiled, r).ok
