@@ -128,21 +128,31 @@ class Batcher:
             n += 1
         return n
 
-    def hits(self, states: Sequence[State], shapes=None) -> Iterator[tuple[int, Candidate, int | None]]:
-        """Lazy batch: the pending candidates whose partial states the plan with these states
-        holds, as (origin, candidate, offset), each taken out of `pending` when yielded. With
-        `shapes` (candidate -> further sequences its learning forbids, e.g. its interleaved
-        instances) a candidate is also yielded, with offset None, when the plan holds one of them."""
+    def hits(self, states: Sequence[State], shapes=None, lifted=None
+             ) -> Iterator[tuple[int, Candidate, tuple[FactorInstance, ...] | None]]:
+        """Lazy batch: the pending candidates the plan with these states holds, as (origin,
+        candidate, factors), each taken out of `pending` when yielded; `factors` are the
+        plan's own factors that the candidate's verdict decides (steps of the plan): the
+        candidate's, where the plan holds its partial states. With `lifted` (candidate,
+        states -> the factors, in the plan's steps, of a symmetric instance of the candidate
+        the plan holds, or None) a candidate is also yielded when the plan holds such an
+        instance, with those factors. With `shapes` (candidate -> further sequences its
+        learning forbids, e.g. its interleaved instances) a candidate is also yielded, with
+        factors None, when the plan holds one of them."""
         from gnppdsl.logic.validate import find_sequence
 
         for item in list(self.pending):
             origin, cand = item
+            factors = None
             offset = find_sequence(states, cand.conflict)
-            if offset is None and not (shapes is not None and any(
-                    find_sequence(states, seq) is not None for seq in shapes(cand))):
+            if offset is not None:
+                factors = tuple(f.shifted(offset) for f in cand.factors)
+            elif lifted is not None and (factors := lifted(cand, states)) is not None:
+                pass
+            elif not (shapes is not None and any(find_sequence(states, seq) is not None for seq in shapes(cand))):
                 continue
             self.pending.remove(item)
-            yield origin, cand, offset
+            yield origin, cand, factors
 
     def siblings(self, origin: int) -> list[Candidate]:
         """Lazy batch: take out of `pending` the candidates queued with `origin`."""

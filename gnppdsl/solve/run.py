@@ -94,6 +94,7 @@ class Run(ReachabilityCosts, BatchLearning):
                                    lazy=options.batch_lazy)
         self.batch_origin: int | None = None   # lazy batch: the origin of the candidate being learned
         self.batch_shapes_memo: dict = {}       # lazy batch: Candidate.key -> its interleaved instances
+        self.batch_lifted_memo: dict = {}       # lazy batch: Candidate.key -> [its renamings, its lifted images]
         self.attempt_cpu = time.process_time()   # CPU clock when the current plan's attempt began
 
     def say(self, msg: str) -> None:
