@@ -139,11 +139,55 @@ class _Assembled:
     root: "_Assembled | None" = None   # the assembly this one shares its solver with (shape_cache)
     linearised: bool = False           # forward-kinematics rows left out of ipopt's Hessian
                                        # (`kinematic_curvature` false or the first pass of "auto")
+    # `params` and ipopt's parameter vector as casadi DMs, each with the `params` array it was
+    # made from (`replace` copies these fields: an assembly with other numbers remakes them)
+    _params_dm: tuple = (None, None)
+    _p_dm: tuple = (None, None)
+    _last_rows: tuple = (None, b"", None)      # (params, x's bytes, h(x)): see `rows`
+
+    def params_dm(self) -> ca.DM:
+        """`params` as a DM, converted once per assembly. Why: casadi converts a numpy
+        argument element by element (~55 ns each: a path NLP's 1,600-2,400 parameters cost
+        ~0.1 ms per `h_fun` call), a DM is copied in ~8 us."""
+        src, dm = self._params_dm
+        if src is not self.params:
+            dm = ca.DM(self.params)
+            self._params_dm = (self.params, dm)
+        return dm
+
+    def p_dm(self, x0: np.ndarray, rho: float) -> ca.DM:
+        """The solver's parameter vector (x0, params, rho) as a DM kept per assembly, whose
+        x0 and rho are overwritten in place (see `params_dm` for why; casadi copies a call's
+        inputs, so the buffer may change after the call)."""
+        src, dm = self._p_dm
+        if src is not self.params:
+            dm = ca.DM(np.concatenate([x0, self.params, [rho]]))
+            self._p_dm = (self.params, dm)
+            return dm
+        if self.n_x:
+            dm[:self.n_x] = x0
+        dm[dm.numel() - 1] = rho
+        return dm
+
+    def rows(self, x: np.ndarray) -> np.ndarray:
+        """h(x): the real constraint rows at x (read-only), remembered for the last x. Why: a
+        run that returns its start (`START_HELD`) has its verdict taken at the point whose rows
+        the start check has just evaluated (`elastic_point`): a path NLP's rows cost ~0.3-0.7
+        ms, and half of `bench_komo.py`'s path NLPs end so."""
+        x = np.ascontiguousarray(x, dtype=float).reshape(-1)
+        key = x.tobytes()
+        src, last, h = self._last_rows
+        if src is self.params and last == key:
+            return h
+        h = np.asarray(self.h_fun(x, self.params_dm()), dtype=float).reshape(-1)
+        h.flags.writeable = False
+        self._last_rows = (self.params, key, h)
+        return h
 
 
 def elastic_point(a: _Assembled, x: np.ndarray) -> np.ndarray:
     """z = (x, the slacks at their optimum for x: each row's violation) of `a`'s elastic NLP."""
-    h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
+    h = a.rows(x)
     hi, he = h[~a.kinds], h[a.kinds]
     return np.concatenate([x, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
 
@@ -540,13 +584,12 @@ class FeasibilitySolver:
         earlier run from whose point x0 is (a polish): started from its z and multipliers
         (`_polisher`); `limit` > 0: at most that many iterations (an NLP with a monitor)."""
         solver = self._polisher(a) if warm is not None else None
-        p = np.concatenate([x0, a.params, [rho]])
         if a.monitor is not None:
             a.monitor.reset(0.1 * self.options.tolerance, self.options.stall_iterations, self.deadline, limit)
         with interrupt.native():         # a signal stops the run (_Monitor), raised after it
             if solver is not None:
-                sol = solver(x0=warm.z, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=a.lbx, ubx=a.ubx,
-                             lbg=a.lbg, ubg=a.ubg)
+                sol = solver(x0=warm.z, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=a.p_dm(x0, rho),
+                             lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
             else:
                 z0 = np.nan_to_num(elastic_point(a, x0), nan=1.0, posinf=1e3, neginf=-1e3)
                 quats = [z0[o + q.start:o + q.stop] for v, o in zip(a.variables, a.offsets) for q in _quat_slices(v)]
@@ -555,7 +598,7 @@ class FeasibilitySolver:
                 # the slacks of z0 are the start's violations (`elastic_point`)
                 near = z0.size == a.n_x or float(z0[a.n_x:].max()) <= self.options.near_start_below
                 solver = (self._near(a) if near else None) or a.solver
-                sol = solver(x0=z0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
+                sol = solver(x0=z0, p=a.p_dm(x0, rho), lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
         st = solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
@@ -596,7 +639,7 @@ class FeasibilitySolver:
         x = x.copy()
         for v, off in zip(a.variables, a.offsets):
             _unit_quaternions(v, x[off:off + v.dim])        # a view: normalised in place
-        h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
+        h = a.rows(x)
         viol = np.where(a.kinds, np.abs(h), np.maximum(h, 0.0))
         viol = np.where(np.isnan(viol), np.inf, viol)
         per = {r: float(viol[i0:i1].max()) if i1 > i0 else 0.0 for r, i0, i1 in a.factor_rows}
