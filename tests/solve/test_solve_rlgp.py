@@ -52,7 +52,7 @@ def test_graph_waypoints_warm_start_trajectories(run):
     # two configurations the graph already holds, a few edges apart (no new IK, no enhancement)
     nodes = graph.nodes()
     a = nodes[0]
-    dist = nx.single_source_shortest_path_length(graph.G, a, cutoff=3)
+    dist = nx.single_source_shortest_path_length(graph.G.to_networkx(), a, cutoff=3)
     b = max(dist, key=lambda n: (dist[n], -n))
     assert dist[b] >= 1
     qa, qb = np.asarray(graph.G.nodes[a]["q"], float), np.asarray(graph.G.nodes[b]["q"], float)
