@@ -49,6 +49,7 @@ if TYPE_CHECKING:  # pragma: no cover
 RADII = (0.25, 0.45, 0.65)      # base-to-target distances tried beyond the footprint radius (m)
 ANGLES = 16                     # points per ring
 BASE_RADIUS = 0.3               # the footprint radius when the robot names no base link
+RING_WEIGHT = 0.5               # plan_bases: drive (m) a ring point costs per metre beyond the innermost ring
 
 
 def base_radius(spec) -> float:
@@ -253,23 +254,24 @@ def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstac
     import numpy as np
 
     travel = TravelMap(obstacles, radius, lo, hi)
-    layers = []                           # (target index, points (n, 2))
+    layers = []                           # (target index, points (n, 2), their ring penalties)
     for i, t in enumerate(targets):
         pts = _ring_points(t, obstacles, lo, hi, radius)
         if pts:
-            layers.append((i, np.asarray([(x, y) for x, y, _ in pts], float)))
+            layers.append((i, np.asarray([(x, y) for x, y, _ in pts], float),
+                           np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts])))
     out: list = [None] * len(targets)
     if not layers:
         return out
-    cost = travel.distances(np.asarray([home[:2]], float), layers[0][1])[0]
+    cost = travel.distances(np.asarray([home[:2]], float), layers[0][1])[0] + layers[0][2]
     back = []
-    for (_, a), (_, b) in zip(layers, layers[1:]):
-        total = cost[:, None] + travel.distances(a, b)
+    for (_, a, _), (_, b, pen) in zip(layers, layers[1:]):
+        total = cost[:, None] + travel.distances(a, b) + pen[None, :]
         back.append(total.argmin(axis=0))
         cost = total.min(axis=0)
     k = int(np.argmin(cost))              # first of the least (ring order breaks ties)
     for j in range(len(layers) - 1, -1, -1):
-        i, pts = layers[j]
+        i, pts, _ = layers[j]
         out[i] = _facing(home, float(pts[k][0]), float(pts[k][1]), targets[i])
         if j:
             k = int(back[j - 1][k])
