@@ -35,7 +35,15 @@ base's radius). Why: the side nearest the previous base can be the wrong one for
 plan. sort_random_pr2 instance 4 (seed 0): the greedy choice put the second pick (blue1, west
 of the table's centre) west of it, the nearest side to the red tray's base; the NLP slid the base
 to the north and the plan drove 4.28 m (GNPP 2.20 m). The plan's choice picks it from the south,
-where the drive to the blue tray goes: 2.44 m, 10.8 s CPU instead of 18.6, verified.
+where the drive to the blue tray goes: 2.44 m, 10.8 s CPU instead of 18.6, verified. A point
+beyond the innermost ring costs RING_WEIGHT metres of drive per metre (the NLP has to pull an
+out-of-reach base in; without it instance 0's first pick started on the PR2's 1.1 m ring and the
+run drove 4.07 m). Measured (`gnpp bench examples/mobile/sort_random_pr2.pntc --algorithms rlgp
+--instances 10 --time-limit 120`, GNPP_REACH_CACHE=0, 996040d against this, load 4-9):
+sort_random_pr2 R-LGP solved 9/10 both (996040d failed instance 5's verification, this
+instance 8's), mean base on the 7 both solved 3.10 -> 2.82 m (GNPP 2.88), on the 9 this and GNPP
+solved 2.92 m against GNPP's 3.36; sort_random (Panda) 10/10 both, mean base 2.82 -> 2.94 m
+(instances 4, 6, 7 longer, 5 and 9 shorter), mean CPU 6.1 -> 5.7 s.
 """
 from __future__ import annotations
 

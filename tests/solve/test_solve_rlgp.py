@@ -227,3 +227,22 @@ def test_rlgp_second_pick_of_sort_random_pr2_4_from_the_south():
     assert set(by_step) == {1, 2, 3, 4}
     assert by_step[3][1] < -0.45 - 0.45 + 1e-6          # south of the central table's footprint
     assert by_step[1][1] < -0.45 - 0.45 + 1e-6
+
+
+def test_plan_bases_prefer_points_within_reach():
+    """`RING_WEIGHT`: a ring point beyond the innermost ring costs drive, so the plan's bases do
+    not sit on the outer ring (1.10 m from the target for the PR2, beyond its reach) to save a
+    few centimetres of travel: sort_random_pr2 instance 0's first pick (red1) from 0.89 m, not
+    from the 1.1 m ring diagonal to it (that run drove 4.07 m, 2.31 m before the plan choice)."""
+    from gnppdsl.compile.placement import RADII, base_radius, restart_guesses
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+
+    c = load_and_compile([str(MOBILE / "sort_random_pr2.pntc")], instance=0)
+    plan = ("pick(red1, mm, center); drop(red1, mm, red_tray); pick(blue1, mm, center); "
+            "drop(blue1, mm, blue_tray)")
+    states = plan_states(c.task, parse_plan(c.task, plan))
+    by_step = {v.step: q for v, q in restart_guesses(c.factory, c.factory.variables(states), states,
+                                                     across_rings=True).items() if v.kind == "q"}
+    r = base_radius(c.problem.scene.robots["mm"])
+    red1 = np.asarray(c.problem.scene.objects["red1"].pose[:2], float)
+    assert np.linalg.norm(np.asarray(by_step[1][:2]) - red1) <= r + RADII[1] + 1e-6
