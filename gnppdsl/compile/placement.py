@@ -35,7 +35,15 @@ base's radius). Why: the side nearest the previous base can be the wrong one for
 plan. sort_random_pr2 instance 4 (seed 0): the greedy choice put the second pick (blue1, west
 of the table's centre) west of it, the nearest side to the red tray's base; the NLP slid the base
 to the north and the plan drove 4.28 m (GNPP 2.20 m). The plan's choice picks it from the south,
-where the drive to the blue tray goes: 2.44 m, 10.8 s CPU instead of 18.6, verified.
+where the drive to the blue tray goes: 2.44 m, 10.8 s CPU instead of 18.6, verified. A point
+beyond the innermost ring costs RING_WEIGHT metres of drive per metre (the NLP has to pull an
+out-of-reach base in; without it instance 0's first pick started on the PR2's 1.1 m ring and the
+run drove 4.07 m). Measured (`gnpp bench examples/mobile/sort_random_pr2.pntc --algorithms rlgp
+--instances 10 --time-limit 120`, GNPP_REACH_CACHE=0, 996040d against this, load 4-9):
+sort_random_pr2 R-LGP solved 9/10 both (996040d failed instance 5's verification, this
+instance 8's), mean base on the 7 both solved 3.10 -> 2.82 m (GNPP 2.88), on the 9 this and GNPP
+solved 2.92 m against GNPP's 3.36; sort_random (Panda) 10/10 both, mean base 2.82 -> 2.94 m
+(instances 4, 6, 7 longer, 5 and 9 shorter), mean CPU 6.1 -> 5.7 s.
 """
 from __future__ import annotations
 
@@ -49,6 +57,7 @@ if TYPE_CHECKING:  # pragma: no cover
 RADII = (0.25, 0.45, 0.65)      # base-to-target distances tried beyond the footprint radius (m)
 ANGLES = 16                     # points per ring
 BASE_RADIUS = 0.3               # the footprint radius when the robot names no base link
+RING_WEIGHT = 0.5               # plan_bases: drive (m) a ring point costs per metre beyond the innermost ring
 
 
 def base_radius(spec) -> float:
@@ -253,23 +262,24 @@ def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstac
     import numpy as np
 
     travel = TravelMap(obstacles, radius, lo, hi)
-    layers = []                           # (target index, points (n, 2))
+    layers = []                           # (target index, points (n, 2), their ring penalties)
     for i, t in enumerate(targets):
         pts = _ring_points(t, obstacles, lo, hi, radius)
         if pts:
-            layers.append((i, np.asarray([(x, y) for x, y, _ in pts], float)))
+            layers.append((i, np.asarray([(x, y) for x, y, _ in pts], float),
+                           np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts])))
     out: list = [None] * len(targets)
     if not layers:
         return out
-    cost = travel.distances(np.asarray([home[:2]], float), layers[0][1])[0]
+    cost = travel.distances(np.asarray([home[:2]], float), layers[0][1])[0] + layers[0][2]
     back = []
-    for (_, a), (_, b) in zip(layers, layers[1:]):
-        total = cost[:, None] + travel.distances(a, b)
+    for (_, a, _), (_, b, pen) in zip(layers, layers[1:]):
+        total = cost[:, None] + travel.distances(a, b) + pen[None, :]
         back.append(total.argmin(axis=0))
         cost = total.min(axis=0)
     k = int(np.argmin(cost))              # first of the least (ring order breaks ties)
     for j in range(len(layers) - 1, -1, -1):
-        i, pts = layers[j]
+        i, pts, _ = layers[j]
         out[i] = _facing(home, float(pts[k][0]), float(pts[k][1]), targets[i])
         if j:
             k = int(back[j - 1][k])
