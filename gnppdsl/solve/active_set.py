@@ -85,6 +85,30 @@ def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | N
     return out
 
 
+def along_motion(result: Any, report: SolutionReport) -> list[tuple[int, float, str, str, float]]:
+    """(step, waypoint, a, b, distance) at every interior waypoint and segment midpoint of the
+    motion s_step -> s_step+1 for each pair the verification found colliding somewhere along
+    it (a `collision` failure at a waypoint or midpoint), filtered like `near_pairs`. Why the
+    whole motion and not only where it collided: the optimisation phase (`solve.optimal`)
+    shortens the path again from the repaired solution and cuts the obstacle's corner at the
+    next unconstrained point. Measured on sort_random_pr2 instance 8 (R-LGP, PR2 base and arm
+    against the centre table in the long base drive s0->s1): each of the four rounds moved the
+    collision to other midpoints (3-4, 8-9, 10-11; 5-6; 11-12; 6-7; 9-10, -4 .. -7 cm) and the
+    run ended verification_failed."""
+    out = []
+    for f in report.issues:
+        if f.kind != "collision" or f.waypoint is None or f.step is None or len(f.bodies) != 2:
+            continue
+        n = max((len(P) for P in result.steps[f.step].trajectories.values()), default=0)
+        a, b = f.bodies
+        out += [(f.step, float(k), a, b, f.distance) for k in range(1, n - 1)]
+        out += [(f.step, k + 0.5, a, b, f.distance) for k in range(n - 1)]
+    if not out:
+        return []
+    spread = SolutionReport(False, near=out, riding=getattr(report, "riding", {}))
+    return near_pairs(result, spread)
+
+
 def _known(factors) -> set:
     """(step, waypoint, {a, b}) of every signed distance some factor of the graph already
     constrains: the pair factors of earlier rounds and the domain's own templates (a waypoint
@@ -144,7 +168,7 @@ def _known(factors) -> set:
 
 
 def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: Any,
-                 settings: ActiveSet) -> list:
+                 settings: ActiveSet, spread: bool = False) -> list:
     """The factors (`gnppdsl.compile.pair_factors`, at the domain's margin) of the near pairs of
     `result` (its verification `report`) that `graph` does not hold yet.
 
@@ -155,7 +179,10 @@ def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: A
     lab5_paper's first round found 1997 near pairs, ~1700 of them resting blocks against the
     table under their pads and against the obstacles beside them, listed at each of the
     motion's 19 waypoints and 20 midpoints; they became 1278 pair factors, most of them
-    copies of one row, which the repair's NLPs carried through every iteration."""
+    copies of one row, which the repair's NLPs carried through every iteration.
+
+    `spread` (a solution the optimisation phase moved): a pair colliding somewhere along a
+    motion joins at every waypoint and midpoint of it (`along_motion`)."""
     plan = result.extras["plan"]
     known = _known(graph.factor_instances)
     static: dict[tuple, bool] = {}          # (step, pair): its factor reads no trajectory
@@ -164,7 +191,7 @@ def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: A
     def build(step: int, a: str, b: str, wp: float | None):
         return pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp)
 
-    for step, wp, a, b, d in near_pairs(result, report):
+    for step, wp, a, b, d in near_pairs(result, report) + (along_motion(result, report) if spread else []):
         pair = frozenset((a, b))
         if wp is not None and static.get((step, pair)) is None:
             f = build(step, a, b, wp)
