@@ -112,7 +112,7 @@ class Coverage(PlanEvaluation):
                 return outcome
             values = outcome[1]
         if not report.ok and self.options.active_set and self.stats.optimised:
-            res, report, extra_cpu = self.unoptimised(plan, graph, values, settings, res, report, extra_cpu)
+            res, report, extra_cpu = self.unoptimised(plan, graph, values, settings, res, report)
         res.stats.cpu_time += extra_cpu
         res.verification = report.to_json()
         if rounds:
@@ -125,7 +125,7 @@ class Coverage(PlanEvaluation):
         return ("result", res)
 
     def unoptimised(self, plan: Plan, graph: GraphNLP, values: dict[VarInstance, np.ndarray],
-                    settings, res, report, extra_cpu: float) -> tuple:
+                    settings, res, report) -> tuple:
         """When the optimised solution still fails the verification after the active set's
         rounds: the plan's feasible solution (`values`, which satisfies every pair factor the
         rounds added) without the optimisation phase, verified like any other, returned when
@@ -136,19 +136,23 @@ class Coverage(PlanEvaluation):
         never reported as solved."""
         from dataclasses import replace
 
-        c0 = time.process_time()
+        # the run's stats are the results' (one object): the optimised result's figures are
+        # restored when it stays the answer
+        kept = {f: getattr(self.stats, f) for f in ("cost", "cost_feasible", "optimise_time", "optimised",
+                                                    "max_violation", "factors", "variables")}
         with overridden(self, options=replace(self.options, optimise=False)):
             plain = self.solution(plan, graph, values)
-        if plain.status != SOLVED:
-            return res, report, extra_cpu + time.process_time() - c0
         c1 = time.process_time()
-        checked = verify(self.compiled, plain, settings)
-        if not checked.ok:
-            return res, report, extra_cpu + time.process_time() - c0
+        checked = verify(self.compiled, plain, settings) if plain.status == SOLVED else None
+        extra = time.process_time() - c1       # `solution` set stats.cpu_time to the run's as of then
+        if checked is None or not checked.ok:
+            for f, x in kept.items():
+                setattr(self.stats, f, x)
+            return res, report, extra
         self.say("  active set: the optimised solution fails the verification; the feasible one is returned")
         plain.message += ("; the optimised solution failed the independent verification "
                           f"({report.failures[0]}), so the plan's feasible solution is returned")
-        return plain, checked, time.process_time() - c1     # the rest is in plain's cpu_time
+        return plain, checked, extra
 
     def repair(self, check: FeasibilityCheck, graph: GraphNLP, values: dict[VarInstance, np.ndarray]):
         """`graph` (a solution's graph with the active set's new pair factors) solved from that
