@@ -39,8 +39,8 @@ import numpy as np
 from gnppdsl import interrupt
 from gnppdsl.compile.factors import VarInstance
 from gnppdsl.errors import UserError
-from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody, mapped_inputs as _mapped_inputs, \
-    scatter_parts as _scatter_parts
+from gnppdsl.nlp.body_compiler import BodyCompiler, CompiledBody
+from gnppdsl.nlp.elastic_derivatives import hessian_function, jacobian_function, mapped_rows
 from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 from gnppdsl.nlp import shape_cache
@@ -139,11 +139,55 @@ class _Assembled:
     root: "_Assembled | None" = None   # the assembly this one shares its solver with (shape_cache)
     linearised: bool = False           # forward-kinematics rows left out of ipopt's Hessian
                                        # (`kinematic_curvature` false or the first pass of "auto")
+    # `params` and ipopt's parameter vector as casadi DMs, each with the `params` array it was
+    # made from (`replace` copies these fields: an assembly with other numbers remakes them)
+    _params_dm: tuple = (None, None)
+    _p_dm: tuple = (None, None)
+    _last_rows: tuple = (None, b"", None)      # (params, x's bytes, h(x)): see `rows`
+
+    def params_dm(self) -> ca.DM:
+        """`params` as a DM, converted once per assembly. Why: casadi converts a numpy
+        argument element by element (~55 ns each: a path NLP's 1,600-2,400 parameters cost
+        ~0.1 ms per `h_fun` call), a DM is copied in ~8 us."""
+        src, dm = self._params_dm
+        if src is not self.params:
+            dm = ca.DM(self.params)
+            self._params_dm = (self.params, dm)
+        return dm
+
+    def p_dm(self, x0: np.ndarray, rho: float) -> ca.DM:
+        """The solver's parameter vector (x0, params, rho) as a DM kept per assembly, whose
+        x0 and rho are overwritten in place (see `params_dm` for why; casadi copies a call's
+        inputs, so the buffer may change after the call)."""
+        src, dm = self._p_dm
+        if src is not self.params:
+            dm = ca.DM(np.concatenate([x0, self.params, [rho]]))
+            self._p_dm = (self.params, dm)
+            return dm
+        if self.n_x:
+            dm[:self.n_x] = x0
+        dm[dm.numel() - 1] = rho
+        return dm
+
+    def rows(self, x: np.ndarray) -> np.ndarray:
+        """h(x): the real constraint rows at x (read-only), remembered for the last x. Why: a
+        run that returns its start (`START_HELD`) has its verdict taken at the point whose rows
+        the start check has just evaluated (`elastic_point`): a path NLP's rows cost ~0.3-0.7
+        ms, and half of `bench_komo.py`'s path NLPs end so."""
+        x = np.ascontiguousarray(x, dtype=float).reshape(-1)
+        key = x.tobytes()
+        src, last, h = self._last_rows
+        if src is self.params and last == key:
+            return h
+        h = np.asarray(self.h_fun(x, self.params_dm()), dtype=float).reshape(-1)
+        h.flags.writeable = False
+        self._last_rows = (self.params, key, h)
+        return h
 
 
 def elastic_point(a: _Assembled, x: np.ndarray) -> np.ndarray:
     """z = (x, the slacks at their optimum for x: each row's violation) of `a`'s elastic NLP."""
-    h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
+    h = a.rows(x)
     hi, he = h[~a.kinds], h[a.kinds]
     return np.concatenate([x, np.maximum(hi, 0), np.maximum(he, 0), np.maximum(-he, 0)])
 
@@ -327,8 +371,8 @@ class FeasibilitySolver:
         # (`CompiledBody.evaluate`: native distance queries), which casadi cannot differentiate
         given_derivatives = self.options.plugin == "ipopt" and self.options.hessian == "exact"
         if use_mx:
-            x, P, params, rows, kinds, factor_rows, layout = self._mapped_rows(graph, compiled, index,
-                                                                               offsets, n, given_derivatives)
+            x, P, params, rows, kinds, factor_rows, layout = mapped_rows(graph, compiled, index, offsets, n,
+                                                                         given_derivatives)
         else:
             params, factor_rows = shape_cache.instance_numbers(compiled, grouped=False)
             x = S.sym("x", n)
@@ -376,10 +420,11 @@ class FeasibilitySolver:
             h_rows[eq] = ineq.size + np.arange(eq.size)
             quat_idx = [offsets[index[v]] + i for v in variables for sl in _quat_slices(v)
                         for i in range(sl.start, sl.stop)]
-            opts["hess_lag"] = self._hessian_function(layout, n, z.numel(), params.size, h_rows,
-                                                      quat_idx, g.numel())
-            opts["jac_g"] = self._jacobian_function(layout, n, z.numel(), params.size, h_rows, quat_idx,
-                                                    ineq.size, eq.size)
+            opts["hess_lag"] = hessian_function(self.compiler, layout, n, z.numel(), params.size, h_rows,
+                                                quat_idx, g.numel(), self.options.distance_curvature,
+                                                self.kinematic_exact)
+            opts["jac_g"] = jacobian_function(self.compiler, layout, n, z.numel(), params.size, h_rows,
+                                              quat_idx, ineq.size, eq.size)
         solver = ca.nlpsol(f"elastic_{self._built}", self.options.plugin,
                            {"x": z, "f": obj, "g": g, "p": ca.vertcat(x0, P, rho)}, opts)
         h_fun = ca.Function("h", [x, P], [h_all])
@@ -424,176 +469,6 @@ class FeasibilitySolver:
             return True
         return (shared.monitor is not None and math.isfinite(self.deadline)
                 and (stored is None or (wanted is not None and stored >= wanted)))
-
-    @staticmethod
-    def _mapped_rows(graph: GraphNLP, compiled: list, index: dict, offsets: list[int], n: int,
-                     fast: bool = False):
-        """MX rows with one `Function.map` call per template Function: the k instances of a
-        template become the k columns of one call, so casadi builds and evaluates derivatives
-        per template, not per instance. Measured on the lab1 full graph (75 factors, 34
-        Functions, 20-waypoint trajectories): nlpsol construction 17.8 s with one call node per
-        factor; see the module docstring for the mapped figure."""
-        x = ca.MX.sym("x", n)
-        groups: OrderedDict[int, list] = OrderedDict()
-        for r, cb, p in compiled:
-            groups.setdefault(id(cb), []).append((r, cb, p))
-        params_arr, factor_rows = shape_cache.instance_numbers(compiled, grouped=True)
-        P = ca.MX.sym("P", params_arr.size)
-        rows, kinds, r0, p0 = [], [], 0, 0
-        layout = []      # per group: (cb, k, stacked-slot variable indices per instance, p0, r0)
-        for members in groups.values():
-            cb = members[0][1]
-            k = len(members)
-            slots = []
-            stacked = [[] for _ in members]
-            for j, d in enumerate(cb.slot_dims):
-                idx = []
-                for t, (r, _, _) in enumerate(members):
-                    v = graph.factor(r).variables[j]
-                    o = offsets[index[v]]
-                    idx.extend(range(o, o + v.dim))
-                    stacked[t].extend(range(o, o + v.dim))
-                slots.append(ca.reshape(x[idx], d, k))
-            layout.append((cb, k, stacked, p0, r0))
-            npar = cb.n_params
-            if npar:
-                Pg = ca.reshape(P[p0:p0 + npar * k], npar, k)       # columns: the instances
-                p0 += npar * k
-            else:
-                Pg = ca.MX(0, k)
-            body = cb.evaluate if fast and cb.evaluate is not None else cb.function
-            fn = body if k == 1 else body.map(k, "serial")
-            out = fn(*slots, Pg)
-            rows.append(ca.vec(out))
-            kinds += [kd == "eq" for kd in cb.kinds] * k
-            r0 += k * cb.n_rows
-        return x, P, params_arr, rows, kinds, factor_rows, layout
-
-    def _jacobian_function(self, layout: list, n: int, n_z: int, n_par: int, h_rows: np.ndarray,
-                           quat_idx: list[int], n_in: int, n_eq: int) -> ca.Function:
-        """ipopt's `jac_g` ((z, p) -> (g, dg/dz)) from the per-template SX Jacobians, one mapped
-        call per template, scattered by one sparse product (as `_hessian_function`); the slack
-        columns are the constants -1 / +1 of the elastic rows.
-
-        The "g" output is a zero placeholder: casadi's ipopt interface asks `nlp_jac_g` for the
-        Jacobian only (g comes from `nlp_g`), but an MX Function computes every output, and the
-        real g here re-ran every distance callback (a quarter of all callback calls on lab1).
-        Measured with casadi 3.8.2: identical iterates and solutions on lab1-lab3;
-        `tests/nlp/test_nlp_jac_g_outputs.py` checks the solver still solves."""
-        z = ca.MX.sym("x", n_z)
-        pp = ca.MX.sym("p", n + n_par + 1)
-        x, P = z[:n], pp[n:n + n_par]
-        parts, entries, base = [], [], 0       # (g row, z column, index into parts)
-        for cb, k, stacked, p0, r0 in layout:
-            jf = self.compiler.jacobian(cb)
-            sp = jf.sparsity_out(0)
-            if sp.nnz() == 0:
-                continue
-            slots, Pg = _mapped_inputs(x, P, cb, k, stacked, p0)
-            fn = jf if k == 1 else jf.map(k, "serial")
-            parts.append(fn(*slots, Pg).nz[:])
-            rr, cc = (np.asarray(v, dtype=np.int64) for v in sp.get_triplet())
-            nnz = sp.nnz()
-            t = np.arange(k, dtype=np.int64)[:, None]       # instances x entries, in that order
-            entries.append(np.stack([h_rows[r0 + t * cb.n_rows + rr[None, :]],
-                                     np.asarray(stacked, dtype=np.int64)[:, cc],
-                                     base + t * nnz + np.arange(nnz)[None, :]], axis=-1).reshape(-1, 3))
-            base += k * nnz
-        chunks, entries = entries, []
-        consts = []
-        for i in range(n_in):
-            entries.append((i, n + i, base + len(consts)))
-            consts.append(-1.0)
-        for e in range(n_eq):
-            entries.append((n_in + e, n + n_in + e, base + len(consts)))
-            consts.append(-1.0)
-            entries.append((n_in + e, n + n_in + n_eq + e, base + len(consts)))
-            consts.append(1.0)
-        if consts:
-            parts.append(ca.DM(consts))
-            base += len(consts)
-        if quat_idx:
-            parts.append(2 * x[quat_idx])
-            entries += [(n_in + n_eq + m // 4, a, base + m) for m, a in enumerate(quat_idx)]
-            base += len(quat_idx)
-        n_g = n_in + n_eq + len(quat_idx) // 4
-        J = _scatter_parts(n_g, n_z, np.concatenate(
-            [*chunks, np.array(entries, dtype=np.int64).reshape(-1, 3)]), parts)
-        return ca.Function("nlp_jac_g", [z, pp], [ca.MX.zeros(n_g, 1), J], ["x", "p"], ["g", "jac_g_x"])
-
-    def _hessian_function(self, layout: list, n: int, n_z: int, n_par: int, h_rows: np.ndarray,
-                          quat_idx: list[int], n_g: int) -> ca.Function:
-        """ipopt's `hess_lag` (upper triangle of the Lagrangian's Hessian in z = [x, slacks])
-        assembled from the per-template SX Hessians (`BodyCompiler.hessian`), one mapped call
-        per template, scattered into place by one sparse matrix product. `h_rows[i]` is the
-        elastic row of g holding real row i; `quat_idx` the x indices of quaternion entries,
-        in the order of the unit-norm rows that follow the elastic rows.
-
-        With `distance_curvature` off, templates that query signed distances (`sdist`,
-        `sdist2`) are left out: their rows enter ipopt's model linearised, as collision
-        constraints do in SQP trajectory optimisers (TrajOpt). Why: on robot domains those
-        Hessians are a large part of an iteration's cost (Lab 5 mode-switch graph, 2554 rows:
-        26 of 64 ms per iteration) and the least informative part of the model, the second
-        derivative of a piecewise-smooth distance through a local contact model. The verdict
-        is untouched: only ipopt's steps change, feasibility is decided on the real rows.
-        Measured with `benchmarks/bench_lab.py` (examples/README.md).
-
-        With `kinematic_curvature` off, templates that use forward kinematics (`fk`) are left
-        out as well (KOMO's Gauss-Newton model; measurements and why it is not the Lab's
-        setting in docs/design.md, "Linearised kinematics").
-
-        In that linearised model the unit-quaternion rows (|q|^2 - 1 = 0) keep their curvature
-        only where it is convex: 2 max(lam, 0) on the quaternion's diagonal instead of 2 lam.
-        Why: a negative multiplier made the Hessian indefinite, and ipopt corrected the inertia
-        (extra factorisations, a damped step) in a third of the iterations; measured on
-        `bench_komo.py`'s keyframe NLP (12 seeds, the block's SE3 poses): 370 -> 306 ipopt
-        iterations in all, median 43.8 -> 38.1 ms CPU per solve, same verdicts (dropping the term
-        altogether: 313 iterations, keeping |lam|: 331). The exact Hessian keeps 2 lam."""
-        z = ca.MX.sym("x", n_z)
-        pp = ca.MX.sym("p", n + n_par + 1)
-        lam_f = ca.MX.sym("lam_f")
-        lam_g = ca.MX.sym("lam_g", n_g)
-        x, x0, P, rho = z[:n], pp[:n], pp[n:n + n_par], pp[n + n_par]
-        lam_h = lam_g[h_rows.tolist()] if h_rows.size else ca.MX(0, 1)
-        parts, entries, base = [], [], 0       # entries: (row a, col b, index into parts)
-        for cb, k, stacked, p0, r0 in layout:
-            if not self.options.distance_curvature and DISTANCE_PRIMITIVES & cb.primitives:
-                continue
-            if not self.kinematic_exact and "fk" in cb.primitives:
-                continue
-            hf = self.compiler.hessian(cb)
-            sp = hf.sparsity_out(0)
-            if sp.nnz() == 0:
-                continue
-            slots, Pg = _mapped_inputs(x, P, cb, k, stacked, p0)
-            Lg = ca.reshape(lam_h[r0:r0 + cb.n_rows * k], cb.n_rows, k)
-            fn = hf if k == 1 else hf.map(k, "serial")
-            Hk = fn(*slots, Pg, Lg)
-            parts.append(Hk.nz[:])
-            rr, cc = (np.asarray(v, dtype=np.int64) for v in sp.get_triplet())
-            nnz = sp.nnz()
-            st = np.asarray(stacked, dtype=np.int64)
-            t = np.arange(k, dtype=np.int64)[:, None]       # instances x entries, in that order
-            ab = np.stack([st[:, rr], st[:, cc], base + t * nnz + np.arange(nnz)[None, :]],
-                          axis=-1).reshape(-1, 3)
-            entries.append(ab[ab[:, 0] <= ab[:, 1]])       # the upper triangle
-            base += k * nnz
-        # pull towards the start (pseudo-Huber) and unit quaternions: diagonal terms
-        parts.append(lam_f * rho * (1 + (x - x0) ** 2) ** (-1.5))
-        chunks, entries = entries, [(i, i, base + i) for i in range(n)]
-        base += n
-        if quat_idx:
-            lam_q = lam_g[n_g - len(quat_idx) // 4:]
-            if not self.kinematic_exact:
-                # the model's convex part only (see the docstring)
-                lam_q = ca.fmax(lam_q, 0)
-            parts.append(2 * ca.repmat(lam_q.T, 4, 1)[:])
-            entries += [(a, a, base + m) for m, a in enumerate(quat_idx)]
-            base += len(quat_idx)
-        H = _scatter_parts(n_z, n_z, np.concatenate(
-            [*chunks, np.array(entries, dtype=np.int64).reshape(-1, 3)]), parts)
-        return ca.Function("nlp_hess_l", [z, pp, lam_f, lam_g], [H],
-                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
 
     # -- starts -----------------------------------------------------------------------------
     def _default_start(self, v: VarInstance, seed: int, attempt: int) -> np.ndarray:
@@ -709,13 +584,12 @@ class FeasibilitySolver:
         earlier run from whose point x0 is (a polish): started from its z and multipliers
         (`_polisher`); `limit` > 0: at most that many iterations (an NLP with a monitor)."""
         solver = self._polisher(a) if warm is not None else None
-        p = np.concatenate([x0, a.params, [rho]])
         if a.monitor is not None:
             a.monitor.reset(0.1 * self.options.tolerance, self.options.stall_iterations, self.deadline, limit)
         with interrupt.native():         # a signal stops the run (_Monitor), raised after it
             if solver is not None:
-                sol = solver(x0=warm.z, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=a.lbx, ubx=a.ubx,
-                             lbg=a.lbg, ubg=a.ubg)
+                sol = solver(x0=warm.z, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=a.p_dm(x0, rho),
+                             lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
             else:
                 z0 = np.nan_to_num(elastic_point(a, x0), nan=1.0, posinf=1e3, neginf=-1e3)
                 quats = [z0[o + q.start:o + q.stop] for v, o in zip(a.variables, a.offsets) for q in _quat_slices(v)]
@@ -724,7 +598,7 @@ class FeasibilitySolver:
                 # the slacks of z0 are the start's violations (`elastic_point`)
                 near = z0.size == a.n_x or float(z0[a.n_x:].max()) <= self.options.near_start_below
                 solver = (self._near(a) if near else None) or a.solver
-                sol = solver(x0=z0, p=p, lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
+                sol = solver(x0=z0, p=a.p_dm(x0, rho), lbx=a.lbx, ubx=a.ubx, lbg=a.lbg, ubg=a.ubg)
         st = solver.stats()
         self.solves += 1
         z = np.asarray(sol["x"]).reshape(-1)
@@ -765,7 +639,7 @@ class FeasibilitySolver:
         x = x.copy()
         for v, off in zip(a.variables, a.offsets):
             _unit_quaternions(v, x[off:off + v.dim])        # a view: normalised in place
-        h = np.asarray(a.h_fun(x, a.params)).reshape(-1)
+        h = a.rows(x)
         viol = np.where(a.kinds, np.abs(h), np.maximum(h, 0.0))
         viol = np.where(np.isnan(viol), np.inf, viol)
         per = {r: float(viol[i0:i1].max()) if i1 > i0 else 0.0 for r, i0, i1 in a.factor_rows}

@@ -94,7 +94,7 @@ class _Group(NamedTuple):
 def _groups(items: Sequence[tuple[FactorInstance, CompiledBody, np.ndarray]], index: dict,
             offsets: np.ndarray) -> tuple[list[_Group], np.ndarray]:
     """The mapped-call layout of `items` (instances of a template grouped in order of first
-    appearance, as `FeasibilitySolver._mapped_rows`) and their parameter vector."""
+    appearance, as `elastic_derivatives.mapped_rows`) and their parameter vector."""
     members: dict[int, list] = {}
     for item in items:
         members.setdefault(id(item[1]), []).append(item)

@@ -43,11 +43,11 @@ class SolverOptions:
                                    # 3.5 s + 30 s (240 it) vs exact 16-26 s + 26-31 s (90 it))
     distance_curvature: bool = True   # ipopt's exact Hessian includes the second derivatives
                                    # of rows querying signed distances; False: they enter the
-                                   # Hessian linearised (`_hessian_function` says why)
+                                   # Hessian linearised (`elastic_derivatives.hessian_function`: why)
     kinematic_curvature: bool | str = True  # ... and of rows using forward kinematics (`fk`;
                                    # the solve loop's default is "auto": `SolveOptions`);
                                    # False: they enter linearised too (Gauss-Newton-like steps,
-                                   # as KOMO takes; `_hessian_function`); "auto": each start is
+                                   # as KOMO takes; `hessian_function`); "auto": each start is
                                    # run linearised first and, when that run does not end
                                    # feasible, again from the same start with the exact Hessian,
                                    # whose result then stands (`FeasibilitySolver.solve`)

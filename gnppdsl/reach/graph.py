@@ -6,7 +6,7 @@
 - Edges: each node to its k nearest neighbours (by position), *not* collision-checked when added
   (lazy), with the cost of Eq. 3: w_x |x1 - x2| + w_q |q1 - q2| + w_c (c1 + c2).
 - Queries (Sec. IV-B2): the two ends become nodes (IK-solved, or given configurations) whose
-  edges are checked at once; Dijkstra (networkx) finds the cheapest path; only the unchecked
+  edges are checked at once; Dijkstra (`_dijkstra`) finds the cheapest path; only the unchecked
   edges of that path are checked (L interpolated joint-space configurations); an edge that
   collides is removed and Dijkstra runs again. An end that cannot connect, a pair of ends in
   different components, or a node that loses all its edges triggers *enhancement*: Gaussian
@@ -20,16 +20,18 @@ Everything random comes from one `numpy.random.Generator` seeded by `settings.se
 """
 from __future__ import annotations
 
+import heapq
+import itertools
 import math
 import time
 from dataclasses import dataclass, field, fields
-from typing import Callable
+from typing import Callable, Hashable, Iterator
 
-import networkx as nx
 import numpy as np
 
 from gnppdsl.errors import UserError
 from gnppdsl.geometry.robots import RobotModel
+from gnppdsl.nlp.graph import Graph
 from gnppdsl.reach.collision import CollisionChecker, static_obstacles
 from gnppdsl.reach.ik_validation import NodeValidation, ValidationStats, validate_position
 from gnppdsl.reach.library import Solution, SolutionLibrary
@@ -67,6 +69,110 @@ class GraphStats:
     restored: bool = False      # the pre-built graph came from the store (`reach.persist`)
 
 
+class _Nodes:
+    """`G.nodes`: `nodes[n]` (the attribute dict), `nodes(data=True)`, `nodes(data="kind")`."""
+
+    __slots__ = ("_node",)
+
+    def __init__(self, node: dict) -> None:
+        self._node = node
+
+    def __getitem__(self, n: Hashable) -> dict:
+        return self._node[n]
+
+    def __iter__(self) -> Iterator:
+        return iter(self._node)
+
+    def __len__(self) -> int:
+        return len(self._node)
+
+    def __contains__(self, n: Hashable) -> bool:
+        return n in self._node
+
+    def __call__(self, data: bool | str = False) -> Iterator:
+        if isinstance(data, str):
+            return ((n, d.get(data)) for n, d in self._node.items())
+        return iter(self._node.items()) if data else iter(self._node)
+
+
+class LazyGraph(Graph):
+    """The graph of the LazyPRM: `nlp.graph.Graph` (networkx's semantics, without importing
+    networkx: ~0.12 s CPU of every R-LGP solve, a third of the sort2 graph's queries) with the
+    removals and attribute views this module and its tests use (`remove_node`, `remove_edge`,
+    `number_of_edges`, `nodes(data=KEY)`, `edges(data=KEY)`), and Dijkstra's search in
+    networkx's order (`_dijkstra`: the same heap ties, so the same paths)."""
+
+    __slots__ = ()
+
+    @property
+    def nodes(self) -> _Nodes:
+        return _Nodes(self._node)
+
+    def edges(self, data: bool | str = False) -> Iterator:
+        seen: set = set()
+        for u, nbrs in self._adj.items():
+            for v, d in nbrs.items():
+                if v not in seen:
+                    yield (u, v, d.get(data)) if isinstance(data, str) else (u, v, d) if data else (u, v)
+            seen.add(u)
+
+    def remove_node(self, n: Hashable) -> None:
+        if n not in self._node:
+            raise KeyError(n)
+        self.remove_nodes_from((n,))
+
+    def remove_edge(self, u: Hashable, v: Hashable) -> None:
+        del self._adj[u][v]
+        if u != v:
+            del self._adj[v][u]
+
+    def number_of_edges(self) -> int:
+        return sum(len(nbrs) + (u in nbrs) for u, nbrs in self._adj.items()) // 2
+
+    def component(self, u: Hashable) -> set:
+        """u's connected component (`networkx.node_connected_component`)."""
+        comp, todo = {u}, [u]
+        while todo:
+            for m in self._adj[todo.pop()]:
+                if m not in comp:
+                    comp.add(m)
+                    todo.append(m)
+        return comp
+
+    def has_path(self, s: Hashable, t: Hashable) -> bool:
+        return t in self.component(s)
+
+
+def _dijkstra(G: LazyGraph, s: Hashable, t: Hashable) -> tuple[float, list] | None:
+    """The cheapest path s -> t by the edges' `cost` (cost, nodes), None when there is none:
+    `networkx.single_source_dijkstra(G, s, t, weight="cost")`'s algorithm (a heap of (distance,
+    insertion count, node), neighbours in insertion order), hence its choice among equal paths."""
+    adj = G.adj
+    dist: dict = {}
+    seen = {s: 0.0}
+    paths = {s: [s]}
+    count = itertools.count()
+    fringe = [(0.0, next(count), s)]
+    while fringe:
+        d, _, v = heapq.heappop(fringe)
+        if v in dist:
+            continue
+        dist[v] = d
+        if v == t:
+            break
+        for u, e in adj[v].items():
+            vu = d + e["cost"]
+            if u in dist:
+                continue
+            if u not in seen or vu < seen[u]:
+                seen[u] = vu
+                heapq.heappush(fringe, (vu, next(count), u))
+                paths[u] = paths[v] + [u]
+    if t not in dist:
+        return None
+    return dist[t], paths[t]
+
+
 class ReachabilityGraph:
     """R-LGP reachability graph for one robot. Build with `ReachabilityGraph.from_scene(...)`
     (or the constructor + `build()`), then ask `path`, `travel_cost`, `query`, `query_configs`."""
@@ -81,7 +187,7 @@ class ReachabilityGraph:
         robot.frame_id(self.frame)     # raises a UserError for an unknown frame
         self.checker = checker
         self.home = np.asarray(home, dtype=float) if home is not None else robot.home_coords()
-        self.G = nx.Graph()
+        self.G = LazyGraph()
         self.library = SolutionLibrary()
         self.stats = GraphStats()
         self.rng = np.random.default_rng(settings.seed)
@@ -266,7 +372,7 @@ class ReachabilityGraph:
     # ---- enhancement (Gaussian sampling, Sec. IV-B2) ------------------------------------------
     def _anchored(self, u: int) -> bool:
         """Does u's component contain a pre-built sample node (other than u)?"""
-        return any(self.G.nodes[w]["kind"] == SAMPLE and w != u for w in nx.node_connected_component(self.G, u))
+        return any(self.G.nodes[w]["kind"] == SAMPLE and w != u for w in self.G.component(u))
 
     def _enhance(self, center, goal: Callable[[], bool], seed_q=None) -> bool:
         """Gaussian samples around `center` (standard deviation shrinking each round), each
@@ -427,17 +533,17 @@ class ReachabilityGraph:
         enhanced = not enhance
         while True:
             self.stats.dijkstra_runs += 1
-            try:
-                cost, nodes = nx.single_source_dijkstra(self.G, s, t, weight="cost")
-            except nx.NetworkXNoPath:
+            found = _dijkstra(self.G, s, t)
+            if found is None:
                 if enhanced:
                     return None
                 enhanced = True
                 for end in (s, t):
-                    if self.G.nodes[end]["kind"] != CONTACT and not nx.has_path(self.G, s, t):
-                        self._enhance(self.G.nodes[end]["x"], lambda: nx.has_path(self.G, s, t),
+                    if self.G.nodes[end]["kind"] != CONTACT and not self.G.has_path(s, t):
+                        self._enhance(self.G.nodes[end]["x"], lambda: self.G.has_path(s, t),
                                       seed_q=self.G.nodes[end]["q"])
                 continue
+            cost, nodes = found
             bad = None
             for u, v in zip(nodes, nodes[1:]):
                 if not self.G[u][v]["checked"] and not self.check_edge(u, v):

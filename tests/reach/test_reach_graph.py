@@ -86,7 +86,7 @@ def test_lazy_queries_are_shortest_and_collision_free(graph, checker):
         assert np.linalg.norm(fk_position(g.robot, sol.path[-1], g.frame) - b) <= 1e-3
         # Dijkstra's answer is the shortest path of the current graph (Bellman-Ford agrees) and
         # every edge on it has been checked
-        assert sol.cost == pytest.approx(nx.bellman_ford_path_length(g.G, s, t, weight="cost"), rel=1e-12)
+        assert sol.cost == pytest.approx(nx.bellman_ford_path_length(g.G.to_networkx(), s, t, weight="cost"), rel=1e-12)
         assert sol.cost == pytest.approx(sum(g.G[u][v]["cost"] for u, v in zip(sol.nodes, sol.nodes[1:])), rel=1e-12)
         assert all(g.G[u][v]["checked"] for u, v in zip(sol.nodes, sol.nodes[1:]))
         # dense independent check: 4x finer than the graph's own, no margin
@@ -109,7 +109,7 @@ def test_removed_edges_really_collide(scene, checker):
     unchecked = [(u, v) for u, v, c in g.G.edges(data="checked") if not c]
     removed = [(u, v) for u, v in unchecked if not g.check_edge(u, v)]
     assert removed, "the wall should block some k-NN edges"
-    assert sol.cost == pytest.approx(nx.bellman_ford_path_length(g.G, s, t, weight="cost"), rel=1e-12)
+    assert sol.cost == pytest.approx(nx.bellman_ford_path_length(g.G.to_networkx(), s, t, weight="cost"), rel=1e-12)
     for u, v in removed[:5]:
         qs = g.checker.segment_configs(coords[u], coords[v], g.settings.interpolation, g.settings.max_joint_step)
         assert min(checker.min_distance(q) for q in qs) <= 1e-6

@@ -52,7 +52,7 @@ def test_graph_waypoints_warm_start_trajectories(run):
     # two configurations the graph already holds, a few edges apart (no new IK, no enhancement)
     nodes = graph.nodes()
     a = nodes[0]
-    dist = nx.single_source_shortest_path_length(graph.G, a, cutoff=3)
+    dist = nx.single_source_shortest_path_length(graph.G.to_networkx(), a, cutoff=3)
     b = max(dist, key=lambda n: (dist[n], -n))
     assert dist[b] >= 1
     qa, qb = np.asarray(graph.G.nodes[a]["q"], float), np.asarray(graph.G.nodes[b]["q"], float)
@@ -158,3 +158,91 @@ def test_placement_uses_the_robots_own_footprint():
             lx, ly = math.cos(t) * dx + math.sin(t) * dy, -math.sin(t) * dx + math.cos(t) * dy
             gap = math.hypot(max(abs(lx) - o.shape.size[0] / 2, 0), max(abs(ly) - o.shape.size[1] / 2, 0))
             assert gap >= r - 1e-9, (target, o.name, q[:2], gap)
+
+
+def _table():
+    from types import SimpleNamespace as NS
+
+    return NS(pose=[0.0, 0.0, 0.25, 0.0, 0.0, 0.0, 1.0], shape=NS(kind="box", size=(1.2, 0.9, 0.5)))
+
+
+def test_travel_map_drives_around_the_table():
+    """`TravelMap`: the straight line where it clears the table's footprint grown by the base's
+    radius, else around its (cut) corners; never shorter than the straight line."""
+    from gnppdsl.compile.placement import TravelMap
+
+    r = 0.45
+    m = TravelMap([_table()], r, (-2.2, -1.6), (2.2, 1.6))
+    south, north = np.array([[0.0, -1.2]]), np.array([[0.0, 1.2]])
+    d = m.distances(south, north)[0, 0]
+    # at least the detour past x = 0.6 + r at y = 0, at most the one by the grown rectangle's corners
+    assert 2 * np.hypot(0.6 + r, 1.2 - 0.45 - r) + 2 * (0.45 + r) >= d > 2 * np.hypot(0.6 + r, 1.2)
+    assert m.distances(south, np.array([[1.5, -1.2]]))[0, 0] == pytest.approx(1.5)   # clear line
+    assert m.distances(south, north)[0, 0] == pytest.approx(m.distances(north, south)[0, 0])
+
+
+def test_plan_bases_take_the_side_the_whole_plan_favours():
+    """R-LGP's keyframe bases (`plan_bases`, `restart_guesses(across_rings=True)`): a pick at the
+    west end of the table followed by a put north of it is made from the west side, on the way
+    north, not from the south (the ring point nearest the home base, which the greedy choice
+    took: sort_random_pr2 instance 4's second pick from the west, then the NLP slid north); the
+    plan's drive is the shortest of the choices."""
+    from gnppdsl.compile.placement import TravelMap, base_next_to, plan_bases
+
+    r, lo, hi = 0.45, (-2.2, -1.6), (2.2, 1.9)
+    home = [0.0, -1.15, 1.5708, 0.1]
+    targets = [(-0.5, 0.0), (0.0, 1.5)]
+    dp = plan_bases(targets, home, [_table()], lo, hi, radius=r)
+    greedy, near = [], home
+    for t in targets:
+        near = base_next_to(t, home, [_table()], lo, hi, near=near, across_rings=True, radius=r)
+        greedy.append(near)
+    assert greedy[0][1] < -0.45 - r + 1e-9              # the greedy pick: south of the table
+    assert dp[0][0] < -0.6 - r + 1e-9                   # the plan's: west of it
+    m = TravelMap([_table()], r, lo, hi)
+
+    def drive(qs):
+        pts = [home[:2]] + [q[:2] for q in qs]
+        return sum(m.distances(np.array([a]), np.array([b]))[0, 0] for a, b in zip(pts, pts[1:]))
+
+    assert drive(dp) < drive(greedy) - 0.1
+    for q, t in zip(dp, targets):                       # facing the target, the arm at home
+        assert np.isclose(q[2], np.arctan2(t[1] - q[1], t[0] - q[0])) and q[3:] == home[3:]
+
+
+def _pr2_plan_starts(instance: int):
+    """(compiled, R-LGP's keyframe bases by step) of sort_random_pr2 `instance` for the plan
+    red1 to its tray, then blue1 to its tray."""
+    from gnppdsl.compile.placement import restart_guesses
+    from gnppdsl.compile.semantics import parse_plan, plan_states
+
+    c = load_and_compile([str(MOBILE / "sort_random_pr2.pntc")], instance=instance)
+    plan = ("pick(red1, mm, center); drop(red1, mm, red_tray); pick(blue1, mm, center); "
+            "drop(blue1, mm, blue_tray)")
+    states = plan_states(c.task, parse_plan(c.task, plan))
+    return c, {v.step: q for v, q in restart_guesses(c.factory, c.factory.variables(states), states,
+                                                     across_rings=True).items() if v.kind == "q"}
+
+
+def test_rlgp_second_pick_of_sort_random_pr2_4_from_the_south():
+    """sort_random_pr2 instance 4 (red1 at (0.44, 0.01), blue1 at (-0.42, 0.08), home south of
+    the table): R-LGP's start for the second pick, blue1, is south of the table, where the whole
+    plan drives (the greedy choice put it west of blue1, nearest the red tray's base, and the
+    solve's base drove 4.28 m against plain GNPP's 2.20 m)."""
+    _, by_step = _pr2_plan_starts(4)
+    assert set(by_step) == {1, 2, 3, 4}
+    assert by_step[3][1] < -0.45 - 0.45 + 1e-6          # south of the central table's footprint
+    assert by_step[1][1] < -0.45 - 0.45 + 1e-6
+
+
+def test_plan_bases_prefer_points_within_reach():
+    """`RING_WEIGHT`: a ring point beyond the innermost ring costs drive, so the plan's bases do
+    not sit on the outer ring (1.10 m from the target for the PR2, beyond its reach) to save a
+    few centimetres of travel: sort_random_pr2 instance 0's first pick (red1) from 0.89 m, not
+    from the 1.1 m ring diagonal to it (that run drove 4.07 m, 2.31 m before the plan choice)."""
+    from gnppdsl.compile.placement import RADII, base_radius
+
+    c, by_step = _pr2_plan_starts(0)
+    r = base_radius(c.problem.scene.robots["mm"])
+    red1 = np.asarray(c.problem.scene.objects["red1"].pose[:2], float)
+    assert np.linalg.norm(np.asarray(by_step[1][:2]) - red1) <= r + RADII[1] + 1e-6
