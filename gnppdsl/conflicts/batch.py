@@ -10,7 +10,8 @@ subgraph is small (typically one keyframe), so deciding it directly is far cheap
 waiting for the planner to propose a plan that contains it.
 
 What: for a conflict found on a plan, the candidate renamings π are single renamings of one
-of its objects onto another object of the same declared type (any geometry), then pairs of
+of its objects onto another object of the same declared type or of a subtype (any geometry:
+lab5_paper's reach conflict about block b2 renamed onto obstacle o1), then pairs of
 them (e.g. the block and the arm), objects of the plan first, at most `budget` NLPs per
 conflict. For each, the factory builds π(M) (`Lifter.image`: the factors of the renamed plan
 window with M's rules, templates and renamed bindings; the same construction as lifting,
@@ -37,7 +38,7 @@ from __future__ import annotations
 import itertools
 import re
 from dataclasses import dataclass, field
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -79,6 +80,7 @@ class Candidate:
     states: tuple[tuple[int, ...], ...]           # the renamed plan window π(M) was built on
     conflict: Conflict                            # to_partial_states(π(M))
     key: tuple                                    # identity of π(M) for the cache
+    subtype: bool = False                         # π renames an object onto one of a subtype
 
 
 class Reachable:
@@ -113,6 +115,8 @@ class Batcher:
     pending: list = field(default_factory=list)   # lazy: (origin, Candidate), not decided yet
     origins: int = 0                              # lazy: conflicts whose candidates were queued
     deferred: Candidate | None = None             # lazy: taken from the iterator, not decided (`Run.batch`)
+    subtype: Callable[[str, str], bool] | None = None   # (type, type) -> is the first a subtype of the
+                                                  # second (`Domain.is_subtype`); None: same types only
 
     def queue(self, cands: Iterator[Candidate], known: Sequence[Conflict]) -> int:
         """Lazy batch: keep up to `budget` undecided candidates of one conflict (not cached, not
@@ -128,21 +132,31 @@ class Batcher:
             n += 1
         return n
 
-    def hits(self, states: Sequence[State], shapes=None) -> Iterator[tuple[int, Candidate, int | None]]:
-        """Lazy batch: the pending candidates whose partial states the plan with these states
-        holds, as (origin, candidate, offset), each taken out of `pending` when yielded. With
-        `shapes` (candidate -> further sequences its learning forbids, e.g. its interleaved
-        instances) a candidate is also yielded, with offset None, when the plan holds one of them."""
+    def hits(self, states: Sequence[State], shapes=None, lifted=None
+             ) -> Iterator[tuple[int, Candidate, tuple[FactorInstance, ...] | None]]:
+        """Lazy batch: the pending candidates the plan with these states holds, as (origin,
+        candidate, factors), each taken out of `pending` when yielded; `factors` are the
+        plan's own factors that the candidate's verdict decides (steps of the plan): the
+        candidate's, where the plan holds its partial states. With `lifted` (candidate,
+        states -> the factors, in the plan's steps, of a symmetric instance of the candidate
+        the plan holds, or None) a candidate is also yielded when the plan holds such an
+        instance, with those factors. With `shapes` (candidate -> further sequences its
+        learning forbids, e.g. its interleaved instances) a candidate is also yielded, with
+        factors None, when the plan holds one of them."""
         from gnppdsl.logic.validate import find_sequence
 
         for item in list(self.pending):
             origin, cand = item
+            factors = None
             offset = find_sequence(states, cand.conflict)
-            if offset is None and not (shapes is not None and any(
-                    find_sequence(states, seq) is not None for seq in shapes(cand))):
+            if offset is not None:
+                factors = tuple(f.shifted(offset) for f in cand.factors)
+            elif lifted is not None and (factors := lifted(cand, states)) is not None:
+                pass
+            elif not (shapes is not None and any(find_sequence(states, seq) is not None for seq in shapes(cand))):
                 continue
             self.pending.remove(item)
-            yield origin, cand, offset
+            yield origin, cand, factors
 
     def siblings(self, origin: int) -> list[Candidate]:
         """Lazy batch: take out of `pending` the candidates queued with `origin`."""
@@ -157,14 +171,20 @@ class Batcher:
         renamings onto objects that play the renamed object's role in the plan (an argument
         position of an action: the blocks it picks, not those it stacks onto) first, then onto
         other objects of the plan, then the rest, each by name. Each with an image (`Lifter.image`) and facts; at most
-        FACTORY_FACTOR * budget factory calls. `lifted`: object -> the objects lifting renamed
+        FACTORY_FACTOR * budget factory calls. Renamings onto objects of a subtype come after
+        all the others (`Candidate.subtype`). `lifted`: object -> the objects lifting renamed
         it onto (`Lifter.renamable`); an object lifted onto every other object of its type is
         not renamed (the caller lifts each learned candidate, which covers those renamings)."""
         window, shifted = self.lifter.window(states, factors)
         types = self.lifter.object_types
         lifted = lifted or {}
-        objs = [o for o in self.lifter.objects(factors)
-                if not set(c for c in types if c != o and types[c] == types[o]) <= set(lifted.get(o, ()))]
+        sub = self.subtype or (lambda a, b: a == b)
+        # onto objects of its type or of a subtype: every rule that takes o takes them (an
+        # obstacle is a block); a rule of the subtype alone adds factors outside π(M), which
+        # stays a subgraph of every plan holding its partial states
+        kin = {o: [c for c in types if c != o and (types[c] == types[o] or sub(types[c], types[o]))]
+               for o in self.lifter.objects(factors)}
+        objs = [o for o, cs in kin.items() if not set(cs) <= set(lifted.get(o, ()))]
         roles: dict[str, set] = {}
         for name in plan_names:
             head, args = parse_name(name)
@@ -174,14 +194,16 @@ class Batcher:
         def rank(o: str, c: str) -> int:
             return 0 if roles.get(o, set()) & roles.get(c, set()) else 1 if c in roles else 2
 
-        choices = {o: sorted((c for c in types if c != o and types[c] == types[o]),
-                             key=lambda c: (rank(o, c), _natural(c))) for o in objs}
+        choices = {o: sorted(kin[o], key=lambda c: (rank(o, c), _natural(c))) for o in objs}
         singles = [((o, c),) for o in objs for c in choices[o]]
         pairs = [((o1, c1), (o2, c2)) for o1, o2 in itertools.combinations(objs, 2)
                  for c1 in choices[o1] for c2 in choices[o2] if c1 != c2 and c1 != o2 and c2 != o1]
         pairs.sort(key=lambda m: (sum(rank(o, c) for o, c in m), [_natural(c) for _, c in m]))
+        # renamings onto a subtype after all others (the lazy batch queues them: `Run.batch`)
+        onto_sub = lambda m: any(types[c] != types[o] for o, c in m)      # noqa: E731
         calls = 0
-        for mapping in itertools.chain(singles, pairs):
+        for mapping in itertools.chain([m for m in singles if not onto_sub(m)], [m for m in pairs if not onto_sub(m)],
+                                       [m for m in singles if onto_sub(m)], [m for m in pairs if onto_sub(m)]):
             if calls >= FACTORY_FACTOR * self.budget:
                 return
             calls += 1
@@ -196,7 +218,7 @@ class Batcher:
                 self.stats.unreachable += 1
                 continue                          # no plan holds it: nothing to learn
             key = (seq, frozenset((f.rule, f.template, f.bindings, f.step) for f in image))
-            yield Candidate(mapping, tuple(image), tuple(renamed), seq, key)
+            yield Candidate(mapping, tuple(image), tuple(renamed), seq, key, onto_sub(mapping))
 
 
 def subsumed(seq: Conflict, known: Sequence[Conflict]) -> bool:

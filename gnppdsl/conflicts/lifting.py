@@ -162,7 +162,49 @@ class Lifter:
             return None
         return image, renamed
 
+    def renamings(self, seq: Conflict, limit: int = 256) -> list[Conflict]:
+        """The partial states `seq` renamed by bijections of its objects onto objects of the same
+        declared type and geometry (the renamings `instances` tries, also those of several
+        objects at once, at most `limit`), renamed fact by fact, *not* checked: a cheap
+        necessary condition for a plan to hold a symmetric instance of `seq` (the lazy batch's
+        `Batcher.hits`). Whether it is one is `instances`' factory and isomorphism test."""
+        objs = sorted({n for p in seq for v, x in p.facts
+                       for n in (*self._parsed[v][1], self.task.variables[v].values[x])
+                       if n in self.object_types})
+        key = self.object_key
+        choices = [[o] + [c for c in self.object_types if c != o and self.object_types[c] == self.object_types[o]
+                          and key(c) == key(o) != "-"] for o in objs]
+        out: list[Conflict] = []
+        for combo in itertools.islice(itertools.product(*choices), 1, limit + 1):   # 0: identity
+            if len(set(combo)) != len(combo):
+                continue
+            perm = _complete({o: c for o, c in zip(objs, combo) if o != c})
+            renamed = self._rename_conflict(seq, perm)
+            if renamed is not None and renamed != seq:
+                out.append(renamed)
+        return out
+
     # ---- internals ---------------------------------------------------------------------
+    def _rename_conflict(self, seq: Conflict, perm: dict[str, str]) -> Conflict | None:
+        """π(seq) fact by fact (`pred(args) = value` -> `pred(π(args)) = π(value)`); None when a
+        renamed variable or value is not in the task."""
+        out = []
+        for p in seq:
+            facts = []
+            for v, x in p.facts:
+                pred, args = self._parsed[v]
+                w = self._index.get(var_name(pred, tuple(perm.get(a, a) for a in args)))
+                if w is None:
+                    return None
+                value = self.task.variables[v].values[x]
+                values = self.task.variables[w].values
+                target = perm.get(value, value)
+                if target not in values:
+                    return None
+                facts.append((w, values.index(target)))
+            out.append(PartialState.of(facts))
+        return tuple(out)
+
     def _conflict_objects(self, factors: Sequence[FactorInstance], seq: Conflict) -> list[str]:
         names: set[str] = set()
         for f in factors:

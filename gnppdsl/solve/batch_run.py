@@ -5,7 +5,7 @@ candidates at once and queues the rest; a later plan that holds a queued candida
 that candidate's NLP alone (`batch_hit`), without building its graph-NLP.
 
 Separate from `run.Run` (which derives from `BatchLearning`) because it is one idea with its own
-state (`Run.batcher`, `batch_origin`, `batch_shapes_memo`) and kept `run.py` under the solve
+state (`Run.batcher`, `batch_origin`, `batch_shapes_memo`, `batch_lifted_memo`) and kept `run.py` under the solve
 package's module size.
 """
 from __future__ import annotations
@@ -39,6 +39,7 @@ class BatchLearning:
     db: SubgraphDatabase | None
     batch_origin: int | None
     batch_shapes_memo: dict
+    batch_lifted_memo: dict
     attempt_cpu: float
     conflicts: list[Conflict]
     images: dict
@@ -74,12 +75,14 @@ class BatchLearning:
     def decide_candidates(self, cands: Iterable, known: list, cpu_limit: float | None = None) -> list:
         """The infeasible candidates among `cands` (at most `batch_conflicts` NLPs), each with
         its symmetric instances (`Lifter`: the same NLP, no solve); `known` grows by them.
-        `cpu_limit`: stop after the candidate that reaches that many CPU seconds (the others
-        stay in the iterator)."""
+        `cpu_limit`: stop after the candidate that reaches that many CPU seconds, or at the first
+        renaming onto a subtype (`Candidate.subtype`; the others stay in the iterator)."""
         stats, out, solved = self.batcher.stats, [], 0
         cpu0 = time.process_time()
         for cand in cands:
-            if cpu_limit is not None and time.process_time() - cpu0 >= cpu_limit:
+            if cpu_limit is not None and (cand.subtype or time.process_time() - cpu0 >= cpu_limit):
+                # (a renaming onto a subtype is only queued: on lab4_paper deciding them at once
+                # cost 21 more candidate NLPs and saved no plan)
                 self.batcher.deferred = cand      # not decided: queued by the caller
                 break
             if subsumed(cand.conflict, known):
@@ -131,23 +134,25 @@ class BatchLearning:
         return feasible
 
     def batch_hit(self, plan: Plan) -> bool:
-        """Lazy batch: decide the queued candidates this plan holds (or holds an interleaved
-        instance of); the first infeasible one is the plan's conflict (no graph-NLP), learned
-        with the other candidates of its origin. Sound as the eager batch: the same candidates,
-        decided by the same NLP, learned with the same instances."""
+        """Lazy batch: decide the queued candidates this plan holds (or holds a symmetric
+        instance of, `lifted_hit`, or an interleaved instance of); the first infeasible one is
+        the plan's conflict (no graph-NLP), learned with the other candidates of its origin.
+        Sound as the eager batch: the same candidates, decided by the same NLP, learned with
+        the same instances (a symmetric one is the lifter's: the same NLP up to renaming)."""
         if self.batcher is None or not self.batcher.lazy or not self.batcher.pending:
             return False
         t0 = time.perf_counter()
+        lifted = self.lifted_hit if self.lifter is not None else None
         try:
-            for origin, cand, offset in self.batcher.hits(plan.states, self.batch_shapes):
+            for origin, cand, factors in self.batcher.hits(plan.states, self.batch_shapes, lifted):
                 if self.decide(cand):
                     continue
                 self.batch_origin = origin
                 self.batcher.stats.time += time.perf_counter() - t0
                 t0 = time.perf_counter()
                 try:
-                    if offset is not None:
-                        self.add_conflict(plan, [f.shifted(offset) for f in cand.factors], "batch", "")
+                    if factors is not None:
+                        self.add_conflict(plan, factors, "batch", "")
                     else:
                         self.learn_interleaved_hit(plan, cand)
                 finally:
@@ -157,6 +162,35 @@ class BatchLearning:
         finally:
             self.batcher.stats.time += time.perf_counter() - t0
             self.stats.batch_time = self.batcher.stats.time
+
+    def lifted_hit(self, cand, states) -> tuple[FactorInstance, ...] | None:
+        """The factors, in the plan's steps, of a symmetric instance of a queued candidate that
+        the plan with these states holds, or None. A plan is tested with the lifter (its
+        factory and isomorphism test, memoised per candidate) only when it holds one of the
+        candidate's renamings fact by fact (`Lifter.renamings`, memoised too): the lifter's
+        instances are the ones `decide_candidates` learns with the candidate, and its image
+        of M is the same NLP as the candidate's, so the candidate's verdict is the image's."""
+        from gnppdsl.logic.validate import find_sequence
+
+        assert self.lifter is not None
+        memo = self.batch_lifted_memo
+        if cand.key not in memo:
+            memo[cand.key] = [self.lifter.renamings(cand.conflict), None]
+        renamings, images = memo[cand.key]
+        facts = {(v, x) for s in states for v, x in enumerate(s)}
+        if not any(all(f in facts for p in seq for f in p.facts) and find_sequence(states, seq) is not None
+                   for seq in renamings):
+            return None
+        if images is None:             # the lifter's instances and their factors π(M)
+            t0 = time.perf_counter()
+            instances = self.lifter.instances(cand.states, cand.factors)
+            images = memo[cand.key][1] = {s: self.lifter.images[s] for s in instances[1:]}
+            self.stats.lift_time += time.perf_counter() - t0
+        for seq, image in images.items():
+            offset = find_sequence(states, seq)
+            if offset is not None:
+                return tuple(f.shifted(offset - min(g.step for g in image)) for f in image)
+        return None
 
     def batch_shapes(self, cand) -> list:
         """The interleaved instances of a queued candidate (`interleaved`, memoised per candidate)."""

@@ -91,9 +91,10 @@ class Run(ReachabilityCosts, BatchLearning):
             self.batcher = Batcher(self.lifter or Lifter(compiled.factory, self.task, compiled.problem.objects,
                                                          compiled.object_key),
                                    options.batch_conflicts, reachable=Reachable(self.task),
-                                   lazy=options.batch_lazy)
+                                   lazy=options.batch_lazy, subtype=compiled.problem.domain.is_subtype)
         self.batch_origin: int | None = None   # lazy batch: the origin of the candidate being learned
         self.batch_shapes_memo: dict = {}       # lazy batch: Candidate.key -> its interleaved instances
+        self.batch_lifted_memo: dict = {}       # lazy batch: Candidate.key -> [its renamings, its lifted images]
         self.attempt_cpu = time.process_time()   # CPU clock when the current plan's attempt began
 
     def say(self, msg: str) -> None:

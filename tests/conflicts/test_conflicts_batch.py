@@ -174,3 +174,86 @@ def test_batch_budget_is_range_checked(bad):
 
     with pytest.raises(UserError):
         SolveOptions(batch_conflicts=bad).validated()
+
+
+def hand_plan(compiled, names):
+    """The logic plan of these action names from the initial state (derived values included)."""
+    from gnppdsl.compile.semantics import derive
+    from gnppdsl.logic.planner import Plan
+
+    task = compiled.task
+    ops = [next(i for i, o in enumerate(task.operators) if o.name == n) for n in names]
+    states = [initial_state(task)]
+    for i in ops:
+        states.append(successor(task, states[-1], task.operators[i]))
+    return Plan(tuple(ops), tuple(names), tuple(tuple(derive(task, s)) for s in states), float(len(ops)))
+
+
+def test_lazy_batch_hit_on_a_symmetric_instance_of_a_queued_candidate(tmp_path, monkeypatch):
+    """A plan that holds not a queued candidate but a symmetric instance of one (the lifter's:
+    the same NLP up to renaming) is decided by that candidate's NLP alone: the conflict about c1
+    in the small region r2 queues its renamings onto the other regions (c1 itself is not
+    renamed: lifting already takes it onto every other disc), so `{parent(c1) = r3}` is queued
+    and `{parent(c2) = r3}` is not; the plan putting c2 into r3 is refused by the queued
+    candidate's verdict (source "batch", no graph-NLP of the plan). The conflict holds in that
+    plan (`add_conflict` asserts it) and the oracle agrees: c2 does not fit into r3. A plan with
+    c2 in the large region is not refused. (Without the lifted hit, `batch_hit` answered False.)"""
+    from gnppdsl.solve import batch_run
+    from gnppdsl.solve.loop import Loop
+
+    monkeypatch.setattr(batch_run, "EAGER_SHARE", 0.0)
+    compiled = gnppdsl.load_and_compile(str(uneven_family(tmp_path)))
+    opts = replace(SolveOptions.from_settings(compiled.problem.settings, jit=False, time_limit=120,
+                                              planner="sequential", batch_min_factors=0), batch_conflicts=32)
+    loop = Loop(compiled, opts.validated(), None)
+    assert loop.attempt(hand_plan(compiled, ["pick(c1, g, sc1)", "place(c1, g, r2)"])) is None
+    assert loop.conflicts[-1].source == "nlp" and "parent(c1) = r2" in loop.conflicts[-1].text
+    queued = [c.conflict for _, c in loop.batcher.pending]
+    c2_r3 = hand_plan(compiled, ["pick(c2, g, sc2)", "place(c2, g, r3)"])
+    assert any(find_sequence(hand_plan(compiled, ["pick(c1, g, sc1)", "place(c1, g, r3)"]).states, q) is not None
+               for q in queued)
+    assert not any(find_sequence(c2_r3.states, q) is not None for q in queued)
+    assert loop.batch_hit(hand_plan(compiled, ["pick(c2, g, sc2)", "place(c2, g, big)"])) is False
+    assert loop.batch_hit(c2_r3) is True
+    c = loop.conflicts[-1]
+    assert c.source == "batch" and c.text == "{parent(c2) = r3}", (c.source, c.text)
+    assert find_sequence(c2_r3.states, c.partial_states) is not None
+    assert not place_feasible(compiled, "c2", "sc2", "r3")
+    assert place_feasible(compiled, "c2", "sc2", "big")
+
+
+def test_batch_renames_onto_objects_of_a_subtype(tmp_path, monkeypatch):
+    """The blockers are declared `blocker < block`: lifting never renames b1 onto them (another
+    type), and before this the batch did not either. A conflict about b1 in the small region r2
+    now queues the renaming onto the blocker c1 (after every same-type renaming, and never
+    decided at once: `Candidate.subtype`); the plan that puts c1 into r2 holds it and is refused
+    by its NLP alone (source "batch"); the oracle agrees that c1 does not fit into r2, and
+    a plan with c1 in the large region is not refused."""
+    from gnppdsl.solve import batch_run
+    from gnppdsl.solve.loop import Loop
+
+    monkeypatch.setattr(batch_run, "EAGER_SHARE", 1e9)       # the same-type ones at once: no matter
+    problem = uneven_family(tmp_path)
+    domain = tmp_path / "domain.pntc"
+    domain.write_text(domain.read_text().replace("type block ", "type blocker < block\ntype block ", 1)
+                      if "type blocker" not in domain.read_text() else domain.read_text())
+    text = problem.read_text()
+    assert "b1, b3, c1, c2 : block" in text
+    problem.write_text(text.replace("b1, b3, c1, c2 : block", "b1, b3 : block  c1, c2 : blocker"))
+    compiled = gnppdsl.load_and_compile(str(problem))
+    assert compiled.problem.objects["c1"] == "blocker"
+    opts = replace(SolveOptions.from_settings(compiled.problem.settings, jit=False, time_limit=120,
+                                              planner="sequential", batch_min_factors=0), batch_conflicts=32)
+    loop = Loop(compiled, opts.validated(), None)
+    assert loop.attempt(hand_plan(compiled, ["pick(b1, g, s1)", "place(b1, g, r2)"])) is None
+    first = loop.conflicts[-1]
+    assert first.source == "nlp" and "parent(b1) = r2" in first.text
+    assert not any("c1" in t or "c2" in t for t in (first.text, *first.instances, *first.batched))
+    c1_r2 = hand_plan(compiled, ["pick(c1, g, sc1)", "place(c1, g, r2)"])
+    assert any(find_sequence(c1_r2.states, c.conflict) is not None and c.subtype for _, c in loop.batcher.pending)
+    assert loop.batch_hit(hand_plan(compiled, ["pick(c1, g, sc1)", "place(c1, g, big)"])) is False
+    assert loop.batch_hit(c1_r2) is True
+    c = loop.conflicts[-1]
+    assert c.source == "batch" and find_sequence(c1_r2.states, c.partial_states) is not None, (c.source, c.text)
+    assert not place_feasible(compiled, "c1", "sc1", "r2")
+    assert place_feasible(compiled, "c1", "sc1", "big")
