@@ -59,6 +59,7 @@ class GeometryContext:
         self._sdist_fn: dict[tuple, Any] = {}     # per body pair: Function; ("parts", planar): (input, model)
         self._fk_memo: dict[tuple, np.ndarray] = {}     # numeric fk_matrix by exact inputs
         self._pin_data: dict[str, Any] = {}             # one pinocchio Data per robot
+        self.verify_memo: dict[tuple, Any] = {}         # gnppdsl.geometry.verify's, by exact inputs
         self.native: Any = None                         # geometry.native library, once used
 
     # -- robots -------------------------------------------------------------------------------
@@ -274,6 +275,7 @@ class GeometryContext:
         solve's memo would be timed for work it did not do (lab1 is deterministic across seeds:
         seeds 1-9 would find every coal query answered)."""
         self._fk_memo.clear()
+        self.verify_memo.clear()
         for cb in self._callbacks.values():
             cb.forget()
         if self.native is not None:

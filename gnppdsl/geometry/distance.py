@@ -55,6 +55,21 @@ class ConvexBody:
             self._spheres[planar] = (c, r)
         return self._spheres[planar]
 
+    def local_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(centre, half extents) in the body frame of an axis-aligned box containing every
+        shape: the union of coal's local AABBs (exact for boxes, cylinders and convex hulls,
+        unlike vertex samples of curved shapes), each turned by its placement."""
+        if "box" not in self._spheres:
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            for s, M in zip(self.shapes, self.placements):
+                s.computeLocalAABB()
+                a = s.aabb_local
+                c0, h0 = (np.asarray(a.min_) + np.asarray(a.max_)) / 2, (np.asarray(a.max_) - np.asarray(a.min_)) / 2
+                c, h = M[:3, :3] @ c0 + M[:3, 3], np.abs(M[:3, :3]) @ h0
+                lo, hi = np.minimum(lo, c - h), np.maximum(hi, c + h)
+            self._spheres["box"] = ((lo + hi) / 2, (hi - lo) / 2)
+        return self._spheres["box"]
+
 
 def _transform(R: np.ndarray, p: np.ndarray):
     import coal

@@ -95,6 +95,20 @@ def entity_matrix(ctx, name: str, value) -> np.ndarray:
     raise UserError(f"pose of '{name}' must be SE3 (7 numbers) or SE2 (3 numbers), got {v.size}")
 
 
+def _entity_matrix(ctx, name: str, value) -> np.ndarray:
+    """`entity_matrix` memoised by the exact value (read-only): objects no motion moves keep
+    their pose at every waypoint."""
+    v = np.asarray(value, dtype=float).ravel()
+    memo = _memo(ctx)
+    key = ("pose", v.tobytes())
+    T = memo.get(key)
+    if T is None:
+        T = entity_matrix(ctx, name, v)
+        T.flags.writeable = False
+        memo[key] = T
+    return T
+
+
 def scene_value(ctx, name: str):
     """The value an entity has when a state does not mention it."""
     sc = ctx.scene
@@ -127,13 +141,44 @@ def robot_q_base(ctx, name: str, value) -> tuple[np.ndarray, np.ndarray]:
 
 
 def link_placements(ctx, robot: str, q, base=None) -> dict[str, np.ndarray]:
-    """World 4x4 of every collision link of a robot, by pinocchio."""
+    """World 4x4 of every collision link of a robot, by pinocchio (read-only arrays).
+
+    Memoised by the exact inputs in `ctx.verify_memo`: during a motion the other robots keep
+    their configuration, so most of a verification's calls repeat one."""
     import pinocchio as pin
+    qa = np.asarray(q, dtype=float)
+    key = ("links", robot, qa.tobytes(), qa.shape, None if base is None else np.asarray(base, float).tobytes())
+    memo = _memo(ctx)
+    hit = memo.get(key)
+    if hit is not None:
+        return hit
     r = ctx.robot(robot)
-    data = r.model.createData()
+    ids = memo.get(("frame_ids", robot))
+    if ids is None:
+        ids = memo[("frame_ids", robot)] = [(ln, r.model.getFrameId(ln)) for ln in r.links]
+    data = ctx._pin_data.get(robot)
+    if data is None:
+        data = ctx._pin_data[robot] = r.model.createData()
     pin.framesForwardKinematics(r.model, data, r.to_pin_q(q))
     B = r.base if base is None else se3_to_matrix(base)
-    return {ln: B @ np.array(data.oMf[r.model.getFrameId(ln)].homogeneous) for ln in r.links}
+    out = {}
+    for ln, fid in ids:
+        T = B @ np.array(data.oMf[fid].homogeneous)
+        T.flags.writeable = False
+        out[ln] = T
+    memo[key] = out
+    return out
+
+
+_MEMO_SIZE = 200_000
+
+
+def _memo(ctx) -> dict:
+    """The context's memo of this module (emptied when it grows past `_MEMO_SIZE` entries)."""
+    m = ctx.verify_memo
+    if len(m) > _MEMO_SIZE:
+        m.clear()
+    return m
 
 
 def placed_bodies(ctx, state: dict[str, Any]) -> list[_Placed]:
@@ -143,7 +188,7 @@ def placed_bodies(ctx, state: dict[str, Any]) -> list[_Placed]:
         if o.shape.kind == "none":
             continue
         val = state_value(ctx, state, name)
-        out.append(_Placed(name, name, ctx.body(name, planar), entity_matrix(ctx, name, val), o.static))
+        out.append(_Placed(name, name, ctx.body(name, planar), _entity_matrix(ctx, name, val), o.static))
     for name, spec in ctx.scene.robots.items():
         val = state_value(ctx, state, name)
         if spec.kind == "urdf":
@@ -153,7 +198,7 @@ def placed_bodies(ctx, state: dict[str, Any]) -> list[_Placed]:
                 # a link no joint moves (the Panda's link0 on its table) counts as static
                 out.append(_Placed(f"{name}/{ln}", name, ctx.body(("link", name, ln)), T, ln in fixed))
         elif spec.shape is not None and spec.shape.kind != "none":
-            out.append(_Placed(name, name, ctx.body(name, planar), entity_matrix(ctx, name, val)))
+            out.append(_Placed(name, name, ctx.body(name, planar), _entity_matrix(ctx, name, val)))
     return out
 
 
@@ -172,51 +217,55 @@ def _ignored(a: _Placed, b: _Placed, ignore: set[frozenset]) -> bool:
     return False
 
 
-def sphere_bounds(ctx, bodies: list[_Placed]) -> tuple[np.ndarray, np.ndarray]:
-    """World centres (n x 3) and radii (n) of the bodies' bounding spheres: the broadphase.
+def _far(ctx, bodies: list[_Placed], cutoff: float) -> np.ndarray:
+    """n x n: True where a pair's signed distance surely exceeds `cutoff` (the broadphase).
 
-    |c_a - c_b| - r_a - r_b is a lower bound of the pair's signed distance (the spheres contain
-    the convex hulls), so a pair whose bound exceeds a cutoff needs no exact query. Why spheres
-    and not coal's DynamicAABBTreeCollisionManager: the manager answers collision / nearest-pair
-    queries, not "every pair closer than a cutoff"; with < 60 bodies per state the all-pairs
-    bound is one numpy expression (measured: 30 us per Lab state, against 5-6 ms for the exact
-    queries it saves)."""
+    Two lower bounds of the signed distance, a pair is far when either exceeds the cutoff:
+    |c_a - c_b| - r_a - r_b of the bounding spheres (which contain the convex hulls), and the
+    gap between the world AABBs of the bodies' local boxes (`ConvexBody.local_box`, coal's local
+    AABBs: a box turned by R has half extents |R| h). Why both: the sphere around a long Panda
+    link reaches 10-20 cm past its sides, the box is tight there (lab5: 16k of 18k distinct
+    exact queries were farther than the 5 cm cutoff with spheres alone); the sphere is the
+    tighter one for a rotated cube. Why not coal's DynamicAABBTreeCollisionManager: it answers
+    collision / nearest-pair queries through a Python callback per pair, not "every pair closer
+    than a cutoff"; with < 60 bodies per state the all-pairs bounds are a few numpy expressions."""
     planar = ctx.scene.dimension == 2
-    cs, rs = np.zeros((len(bodies), 3)), np.zeros(len(bodies))
-    for i, p in enumerate(bodies):
-        c, r = p.body.bounding_sphere(planar)
-        cs[i] = p.T[:3, :3] @ c + p.T[:3, 3]
-        rs[i] = r
-    return cs, rs
+    key = ("bounds", planar, tuple(p.name for p in bodies))
+    memo = _memo(ctx)
+    const = memo.get(key)
+    if const is None:          # per body: sphere centre, box centre (body frame); radius; half extents
+        const = memo[key] = (np.array([[p.body.bounding_sphere(planar)[0], p.body.local_box()[0]] for p in bodies]),
+                             np.array([p.body.bounding_sphere(planar)[1] for p in bodies]),
+                             np.array([p.body.local_box()[1] for p in bodies]))
+    centres, rs, h = const
+    T = np.array([p.T for p in bodies])
+    R = T[:, :3, :3]
+    w = np.einsum("nij,nkj->nki", R, centres) + T[:, None, :3, 3]
+    cs, wc = w[:, 0], w[:, 1]
+    d = cs[:, None, :] - cs[None, :, :]
+    sphere = np.sqrt((d * d).sum(axis=2)) - rs[:, None] - rs[None, :]
+    wh = np.einsum("nij,nj->ni", np.abs(R), h)
+    gaps = np.maximum(np.abs(wc[:, None, :] - wc[None, :, :]) - wh[:, None, :] - wh[None, :, :], 0.0)
+    box = np.sqrt((gaps * gaps).sum(axis=2))
+    return (sphere > cutoff) | (box > cutoff)
 
 
-def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterable[str]] = (), models=None,
-                   self_collision: bool = True, cutoff: float | None = None,
-                   keep: Any = None) -> list[PairDistance]:
-    """Signed distances of every relevant pair, smallest first.
+def _relevant(ctx, bodies: list[_Placed], ign: set, self_collision: bool, keep: Any) -> np.ndarray:
+    """n x n (upper triangle): the pairs `pair_distances` measures, before the broadphase.
 
-    Relevant: object-object (unless both static; a robot link no joint moves counts as static when
-    the robot's base is the scene's), robot link-object, links of different robots,
-    and each robot's self-collision pairs (SRDF-filtered); minus the scene's
-    `ignore_collisions` and `ignore` (e.g. a held object and its robot, a block and its support).
-    `cutoff`: pairs whose bounding spheres are farther apart than this are left out (their
-    distance is larger; see `sphere_bounds`). `keep(a, b)`: a filter on the placed bodies
-    (e.g. the categories a domain's `avoid` declaration names).
-    """
-    ctx = _as_ctx(ctx_or_scene, models)
-    ign = {frozenset(p) for p in ctx.scene.ignore_collisions} | {frozenset(p) for p in ignore}
-    bodies = placed_bodies(ctx, state)
+    Memoised by the bodies' names and static flags, the ignore set and the `keep` filter: the
+    bodies of a scene are the same at every waypoint, so a verification builds a few of these."""
+    key = ("relevant", tuple((p.name, p.owner, p.static) for p in bodies), frozenset(ign), self_collision, keep)
+    memo = _memo(ctx)
+    hit = memo.get(key)
+    if hit is not None:
+        return hit
     self_pairs = {name: {frozenset(p) for p in ctx.robot(name).self_pairs}
                   for name, s in ctx.scene.robots.items() if s.kind == "urdf"} if self_collision else {}
-    if cutoff is not None and bodies:
-        cs, rs = sphere_bounds(ctx, bodies)
-        gap = np.linalg.norm(cs[:, None, :] - cs[None, :, :], axis=2) - rs[:, None] - rs[None, :]
-        ii, jj = np.nonzero(np.triu(gap <= cutoff, 1))        # the candidates, in one expression
-        candidates = ((bodies[i], bodies[j]) for i, j in zip(ii.tolist(), jj.tolist()))
-    else:
-        candidates = itertools.combinations(bodies, 2)
-    out = []
-    for a, b in candidates:
+    n = len(bodies)
+    out = np.zeros((n, n), dtype=bool)
+    for i, j in itertools.combinations(range(n), 2):
+        a, b = bodies[i], bodies[j]
         if a.static and b.static:
             continue
         if keep is not None and not keep(a, b):
@@ -229,8 +278,54 @@ def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterabl
                 continue
         if _ignored(a, b, ign):
             continue
-        d = signed_distance(a.body, a.T[:3, :3], a.T[:3, 3], b.body, b.T[:3, :3], b.T[:3, 3])
-        out.append(PairDistance(a.name, b.name, float(d)))
+        out[i, j] = True
+    memo[key] = out
+    return out
+
+
+def pair_distances(ctx_or_scene, state: dict[str, Any], ignore: Iterable[Iterable[str]] = (), models=None,
+                   self_collision: bool = True, cutoff: float | None = None,
+                   keep: Any = None) -> list[PairDistance]:
+    """Signed distances of every relevant pair, smallest first.
+
+    Relevant: object-object (unless both static; a robot link no joint moves counts as static when
+    the robot's base is the scene's), robot link-object, links of different robots,
+    and each robot's self-collision pairs (SRDF-filtered); minus the scene's
+    `ignore_collisions` and `ignore` (e.g. a held object and its robot, a block and its support).
+    `cutoff`: pairs whose distance surely exceeds this are left out (`_far`: bounding spheres and
+    boxes). `keep(a, b)`: a filter on the placed bodies (e.g. the categories a domain's `avoid`
+    declaration names); it may read their name, owner and static flag, not their pose (its
+    answers are memoised, `_relevant`).
+
+    Each exact distance is memoised by the pair and its two world poses (exact bytes) in
+    `ctx.verify_memo`: a block resting on a table, or any pair of bodies no motion moves, has
+    the same distance at every waypoint of a motion (lab5: 10k of 28k queries repeated one).
+    """
+    ctx = _as_ctx(ctx_or_scene, models)
+    ign = {frozenset(p) for p in ctx.scene.ignore_collisions} | {frozenset(p) for p in ignore}
+    bodies = placed_bodies(ctx, state)
+    if not bodies:
+        return []
+    mask = _relevant(ctx, bodies, ign, self_collision, keep)
+    if cutoff is not None:
+        mask = mask & ~_far(ctx, bodies, cutoff)
+    ii, jj = np.nonzero(mask)             # row-major: the order of itertools.combinations
+    memo = _memo(ctx)
+    poses: dict[int, bytes] = {}
+    out = []
+    for i, j in zip(ii.tolist(), jj.tolist()):
+        a, b = bodies[i], bodies[j]
+        ka = poses.get(i)
+        if ka is None:
+            ka = poses[i] = a.T.tobytes()
+        kb = poses.get(j)
+        if kb is None:
+            kb = poses[j] = b.T.tobytes()
+        key = ("d", a.name, b.name, ka, kb)
+        d = memo.get(key)
+        if d is None:
+            d = memo[key] = float(signed_distance(a.body, a.T[:3, :3], a.T[:3, 3], b.body, b.T[:3, :3], b.T[:3, 3]))
+        out.append(PairDistance(a.name, b.name, d))
     out.sort(key=lambda p: p.distance)
     return out
 

@@ -431,8 +431,13 @@ class _Program:
 
 
 _TABLE = _Table()
-_MAX_NODES = 200_000
-"""Above this many nodes the shared table is emptied (with every compiled factor) before a call."""
+_MAX_NODES = 1_000_000
+"""Above this many nodes the shared table is emptied (with every compiled factor) before a call.
+Why 1M, not 200k (issue 19, helper scale): one check of stack_32's plan graph (24293 factors)
+builds ~400k nodes (594k at the end of a solve), so with 200k the next call emptied the table,
+every factor was compiled again and no remembered row survived: 6 times per solve, 78k factor
+programs for ~50k factors, the final re-checks (`Run.solution`) 2 x 9.4 s CPU. The peak RSS is
+the same (1.69 GB against 1.72 GB: the table reached that size before each emptying anyway)."""
 
 _BODIES: dict[tuple, tuple[tuple, _Template]] = {}
 """(id(body), slot signatures) -> (body, template). The factory hands the same body object to
@@ -440,7 +445,7 @@ the instances of a rule at every step (time invariance), so a body is compiled o
 By identity, not by equality: equal bodies would share one compiled form even where they differ
 in the sign of a zero constant (Num(0.0) == Num(-0.0)), and hashing a whole tree costs about as
 much as compiling it. The body is held, so its id stays its own."""
-_MAX_TEMPLATES = 2_000
+_MAX_TEMPLATES = 10_000      # stack_32 holds 4769 bodies (2000 emptied them 3 times per solve)
 _MAX_HELD = 1_000_000
 """Expression objects of the held bodies above which `_BODIES` is emptied before a call (the
 factory holds the bodies of a problem anyway; this bounds what outlives it, ~150 MB)."""

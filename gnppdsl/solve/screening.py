@@ -74,6 +74,20 @@ more pairs (218 against 154, the repair 9.8 s against 2.0), but the solve is sho
 (a few hundred) unchanged."""
 
 
+SCREEN_DEEP = 0.03
+"""A screened graph (not a relaxation level) whose start has a collision row this deep (metres:
+the largest signed margin of its collision factors, a penetration depth for distance rows) is
+solved with the distance rows' curvature first and linearised second (`screened_solve`), the
+order a solve otherwise takes only after the exact Hessian has rescued one screened NLP
+(`Run.screen_curved`). Why (issue 19): stack_32's keyframes start with a hand 2.65 cm and a
+finger 1.1 cm inside the tower built one step before (row 0.0365); linearised, ipopt stalled
+there (60 iterations, 11.6 s CPU, failed) before the exact Hessian solved them (105 iterations,
+42.8 s), every solve. clutter_6's keyframes start at most 2.24 cm deep and are solved
+linearised (59 iterations, 1.8 s, two rounds); its relaxation levels (up to 5.9 cm) keep their
+one linearised run (`plan_level`). Either order tries the same two runs from the same point,
+and neither failure is a verdict: the threshold only orders them."""
+
+
 MOTION_SCREEN_MIN = 8
 """Collision factors of one phase's motion NLP between fixed keyframes (`solve_motion`) from
 which it is screened too (each factor is a whole motion's rows against one body: `path_clear`
@@ -162,13 +176,22 @@ class CollisionScreen(CheckMemory):
         # (clutter_6's first plan: linearised 0.75 s, then curved 1.6 s, both failed, before
         # its whole solve gave the verdict); the second try is for the keyframes (stack_32)
         level = self.plan_level(g)
+        instances = [g.factor(r) for r in g.factor_refs]
+        margins = self._margins(instances, point)
+        if margins is None:
+            return None
+        is_collision = set(collision)
+        depth = max((m for r, m in zip(g.factor_refs, margins) if r in is_collision), default=0.0)
+        # a start this deep in collision (not a level): the exact Hessian first (SCREEN_DEEP)
+        deep = not level and depth >= SCREEN_DEEP
 
         def solve(sub: GraphNLP, at: dict) -> FeasibilityResult:
             if self.solver.options.distance_curvature:
                 return self.screened_solve(sub, at)
             # linearised distance rows first, the exact Hessian second (`screened_solve`); once
-            # the exact one has rescued a screened NLP of this solve, the other way round
-            first = run.screen_curved
+            # the exact one has rescued a screened NLP of this solve, or when the start is
+            # SCREEN_DEEP in collision, the other way round
+            first = run.screen_curved or deep
             r = self.screened_solve(sub, at, distance_curvature=first)
             if not r.feasible and not level:
                 run.stats.screened_solves += 1
@@ -178,7 +201,7 @@ class CollisionScreen(CheckMemory):
                             starts=r.starts + second.starts)
             return r
 
-        return self.screen_rounds(g, point, collision, solve)
+        return self.screen_rounds(g, point, collision, solve, margins)
 
     def screened_motion(self, m: GraphNLP, start: dict, solve, margins: list | None = None
                         ) -> FeasibilityResult | None:
@@ -306,4 +329,4 @@ class CollisionScreen(CheckMemory):
         return r
 
 
-__all__ = ["CollisionScreen", "MOTION_SCREEN_MIN", "SCREEN_DISTANCE", "SCREEN_KEYFRAMES_MIN", "SCREEN_MIN_FACTORS"]
+__all__ = ["CollisionScreen", "MOTION_SCREEN_MIN", "SCREEN_DEEP", "SCREEN_DISTANCE", "SCREEN_KEYFRAMES_MIN", "SCREEN_MIN_FACTORS"]

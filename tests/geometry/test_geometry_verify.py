@@ -142,3 +142,28 @@ def test_resting_on_a_tilted_support_is_measured_in_its_frame():
     lifted = [*(Ts[:3, 3] + up + Ts[:3, :3] @ [0, 0, 0.005]), *q]
     chk = resting_on(ctx, "b2", lifted, "b1", support)
     assert not chk.ok and abs(chk.gap - 0.005) < 1e-9
+
+
+def test_broadphase_keeps_every_pair_within_the_cutoff(ctx):
+    """The broadphase (bounding spheres and turned local boxes) and the memos of
+    `pair_distances` must not drop or change a pair: at random arm configurations and block
+    poses (random orientations, in the arms' reach), the pairs it returns with a cutoff are
+    exactly the pairs a fresh context (no memo) measures at most that far, same distances."""
+    fresh = GeometryContext(ctx.scene, ctx.models)
+    rng = np.random.default_rng(7)
+    within = dropped = 0
+    for _ in range(12):
+        state = {r: ctx.robot(r).random_coords(rng) for r in ("left", "right")}
+        for b in ("b1", "b2"):
+            quat = rng.normal(size=4)
+            state[b] = np.r_[rng.uniform(0.2, 0.8), rng.uniform(-0.4, 0.4), rng.uniform(0.0, 0.8), quat / np.linalg.norm(quat)]
+        fresh.forget_evaluations()
+        full = {(p.a, p.b): p.distance for p in verify.pair_distances(fresh, state)}
+        for cutoff in (0.0, 0.05, 0.15):
+            fast = {(p.a, p.b): p.distance for p in verify.pair_distances(ctx, state, cutoff=cutoff)}
+            expected = {k: d for k, d in full.items() if d <= cutoff}
+            assert expected.items() <= fast.items(), set(expected) - set(fast)
+            assert all(full[k] == d for k, d in fast.items())
+            within += len(expected)
+            dropped += len(full) - len(fast)
+    assert within > 50 and dropped > 1000          # not vacuous: near pairs kept, far ones skipped

@@ -264,3 +264,29 @@ def test_bodies_equal_up_to_the_sign_of_a_zero_keep_their_own_constants():
     assert constraint_rows(neg, x) == _reference_rows(neg, x) == [("ineq", -math.pi)]
     assert max_violation([neg, pos], x) == (math.pi, pos)
 
+
+
+def test_a_check_of_a_large_graph_keeps_its_compiled_factors_for_the_next_call():
+    """A check whose factors build more than 200k nodes of the shared table (stack_32's plan
+    graph: ~400k) leaves them compiled for the next check: the table is not emptied, so the
+    factors' programs and remembered rows are reused (with 200k, every call after such a check
+    compiled every factor again)."""
+    body = [Constraint(Call("mul", (Num(2.0), Call("add", (Index(Slot(0), Num(0)), Num(1.0))))), "<=", Num(1e6)),
+            Constraint(Call("sub", (Call("mul", (Index(Slot(0), Num(1)), Index(Slot(0), Num(2)))), Num(3.0))),
+                       "<=", Num(1e6))]
+    variables = [VarInstance("x", (f"o{i}",), 0, "R", 3) for i in range(30_000)]
+    factors = [_factor(body, [v]) for v in variables]
+    x = {v: np.array([1.0, 2.0, 3.0]) for v in variables}
+    evaluate._TABLE = evaluate._Table()
+    evaluate._PROGRAMS.clear()
+    try:
+        first = max_violation(factors, x)
+        table = evaluate._TABLE
+        assert len(table.op) > 200_000
+        programs = [evaluate._program(f) for f in factors[:100]]
+        assert max_violation(factors, x) == first
+        assert evaluate._TABLE is table
+        assert all(evaluate._program(f) is p for f, p in zip(factors[:100], programs))
+    finally:                     # the next tests start from an empty table, as after a large solve
+        evaluate._TABLE = evaluate._Table()
+        evaluate._PROGRAMS.clear()

@@ -330,3 +330,45 @@ def test_a_screened_level_that_fails_gets_no_second_try_with_the_curvature(monke
     level = [c for c in calls if c[0].startswith("G[no_time_traj]{screened")]
     assert level and [c for c in level if not c[2]], calls
     assert not [c for c in level if c[1]], level
+
+
+def _first_tries(monkeypatch) -> list:
+    """(level?, distance_curvature of its first screened NLP) of every `screened` call that ran one."""
+    real_screened, real_solve = FeasibilityCheck.screened, FeasibilityCheck.screened_solve
+    out, current = [], []
+
+    def screened(self, g, warm):
+        current.append([self.plan_level(g), None])
+        try:
+            return real_screened(self, g, warm)
+        finally:
+            level, first = current.pop()
+            if first is not None:
+                out.append((level, first))
+
+    def screened_solve(self, sub, point, distance_curvature=False):
+        if current and current[-1][1] is None:
+            current[-1][1] = distance_curvature
+        return real_solve(self, sub, point, distance_curvature=distance_curvature)
+
+    monkeypatch.setattr(FeasibilityCheck, "screened", screened)
+    monkeypatch.setattr(FeasibilityCheck, "screened_solve", screened_solve)
+    return out
+
+
+def test_a_start_deep_in_collision_is_screened_with_the_curvature_first(monkeypatch):
+    """With `distance_curvature = false`, a screened graph whose start has a collision row at
+    least SCREEN_DEEP deep starts with the distance rows' curvature (stack_32's keyframes stalled
+    linearised first, 11.6 s CPU, every solve); a shallower one starts linearised, and so does a
+    relaxation level (`plan_level`: one linearised run) however deep. Only the order of the same
+    two runs changes; every answer is still re-checked by numpy (`_solved`)."""
+    _screen_everything(monkeypatch)
+    first = _first_tries(monkeypatch)
+    monkeypatch.setattr(screening, "SCREEN_DEEP", -np.inf)      # every start counts as deep
+    _solved(replace(OPTIONS, order="relaxed_first", distance_curvature=False))
+    assert any(not level for level, _ in first) and any(level for level, _ in first)
+    assert all(curved != level for level, curved in first), first
+    first.clear()
+    monkeypatch.setattr(screening, "SCREEN_DEEP", np.inf)       # none: linearised first
+    _solved(replace(OPTIONS, order="relaxed_first", distance_curvature=False))
+    assert first and not any(curved for _, curved in first), first
