@@ -23,7 +23,8 @@ from gnppdsl.compile.factors import FactorInstance, VarInstance
 
 
 class _NodeView:
-    """`graph.nodes`: iterate, `in`, `len`, `nodes[n]` (the attribute dict), `nodes(data=True)`."""
+    """`graph.nodes`: iterate, `in`, `len`, `nodes[n]` (the attribute dict), `nodes(data=True)`,
+    `nodes(data=KEY)` (each node with that attribute, None where it has none; networkx's)."""
 
     __slots__ = ("_node",)
 
@@ -42,7 +43,9 @@ class _NodeView:
     def __getitem__(self, n: Any) -> dict:
         return self._node[n]
 
-    def __call__(self, data: bool = False) -> Iterator:
+    def __call__(self, data: bool | str = False) -> Iterator:
+        if isinstance(data, str):
+            return ((n, d.get(data)) for n, d in self._node.items())
         return iter(self._node.items()) if data else iter(self._node)
 
 

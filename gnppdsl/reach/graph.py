@@ -69,44 +69,14 @@ class GraphStats:
     restored: bool = False      # the pre-built graph came from the store (`reach.persist`)
 
 
-class _Nodes:
-    """`G.nodes`: `nodes[n]` (the attribute dict), `nodes(data=True)`, `nodes(data="kind")`."""
-
-    __slots__ = ("_node",)
-
-    def __init__(self, node: dict) -> None:
-        self._node = node
-
-    def __getitem__(self, n: Hashable) -> dict:
-        return self._node[n]
-
-    def __iter__(self) -> Iterator:
-        return iter(self._node)
-
-    def __len__(self) -> int:
-        return len(self._node)
-
-    def __contains__(self, n: Hashable) -> bool:
-        return n in self._node
-
-    def __call__(self, data: bool | str = False) -> Iterator:
-        if isinstance(data, str):
-            return ((n, d.get(data)) for n, d in self._node.items())
-        return iter(self._node.items()) if data else iter(self._node)
-
-
 class LazyGraph(Graph):
     """The graph of the LazyPRM: `nlp.graph.Graph` (networkx's semantics, without importing
     networkx: ~0.12 s CPU of every R-LGP solve, a third of the sort2 graph's queries) with the
     removals and attribute views this module and its tests use (`remove_node`, `remove_edge`,
-    `number_of_edges`, `nodes(data=KEY)`, `edges(data=KEY)`), and Dijkstra's search in
+    `number_of_edges`, `edges(data=KEY)`; `nodes(data=KEY)` is the base's), and Dijkstra's search in
     networkx's order (`_dijkstra`: the same heap ties, so the same paths)."""
 
     __slots__ = ()
-
-    @property
-    def nodes(self) -> _Nodes:
-        return _Nodes(self._node)
 
     def edges(self, data: bool | str = False) -> Iterator:
         seen: set = set()
