@@ -23,9 +23,10 @@ Checks (each failure a `Failure`: kind, step, waypoint, bodies, distance):
   declare) at signed distance >= `margin` (default: the resting contact tolerance, -1 mm: two
   boxes side by side in a tray touch) and, when one body is a robot link, >= `robot_margin`
   (default 0: nothing legitimately rests on a robot), each less `tolerance` (0.1 mm); a held
-  object with its robot is exempt; far pairs are dropped by bounding spheres first. (sort4's
-  R-LGP solution once left a finger 0.14 mm inside a block in the tray: inside the 1 mm resting
-  tolerance then applied to every pair, so the loop reported it verified while
+  object with its robot is exempt; far pairs are dropped first by two lower bounds on their
+  distance, bounding spheres and the bodies' local AABBs turned into the world
+  (`geometry.verify._far`). (sort4's R-LGP solution once left a finger 0.14 mm inside a block
+  in the tray: inside the 1 mm resting tolerance then applied to every pair, so the loop reported it verified while
   `tests/rebuilt_check.py` saw the contact);
 - `joint_limit` at keyframes and waypoints; `boundary`: a motion starts and ends at its
   keyframes;
@@ -56,8 +57,8 @@ self pairs), the movable objects, the static scene bodies (`static: true` in the
 links no joint moves). A pair is checked when both its bodies' categories are named."""
 
 BROADPHASE = 0.05
-"""Pairs whose bounding spheres are more than this apart (m) skip the exact query: 5 cm above
-any margin the verification or the active set use."""
+"""Pairs surely more than this apart (m: bounding spheres or boxes, `geometry.verify._far`) skip
+the exact query: 5 cm above any margin the verification or the active set use."""
 
 
 @dataclass(frozen=True)
