@@ -26,8 +26,8 @@ Checks (each failure a `Failure`: kind, step, waypoint, bodies, distance):
   object with its robot is exempt; far pairs are dropped first by two lower bounds on their
   distance, bounding spheres and the bodies' local AABBs turned into the world
   (`geometry.verify._far`). (sort4's R-LGP solution once left a finger 0.14 mm inside a block
-  in the tray: inside the 1 mm resting tolerance then applied to every pair, so the loop reported it verified while
-  `tests/rebuilt_check.py` saw the contact);
+  in the tray: inside the 1 mm resting tolerance then applied to every pair, so the loop
+  reported it verified while `tests/rebuilt_check.py` saw the contact);
 - `joint_limit` at keyframes and waypoints; `boundary`: a motion starts and ends at its
   keyframes;
 - `grasp`: every held object's box contains the end-effector point and its narrow axis lies
