@@ -179,6 +179,7 @@ class ReachabilityCosts:
         s.reach_edge_checks = s.reach_edges_removed = s.reach_enhanced_nodes = s.reach_restored = 0
         s.reach_contact_ends = 0
         for graph, _ in self.reach.values():
+            graph.keep_checks()               # its edge checks' outcomes, for later runs (`reach.persist`)
             g = graph.stats
             s.reach_samples += graph.num_samples
             s.reach_restored += g.restored
