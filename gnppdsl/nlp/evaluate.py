@@ -428,16 +428,26 @@ class _Program:
         self.ineq_at = tuple(i for i, (eq, _) in enumerate(self.rows) if not eq)
         self.table = table
         self.recent: dict[tuple, list[np.ndarray]] = {}
-        self.far: tuple | None = None            # `_far_rows`, made on the first bounded call
+        self.far: tuple | None = None     # `_far_rows` + bounded rows, made on the first bounded call
 
 
 def _far_rows(prog: _Program) -> tuple:
     """(the steps without the deferred ones, {row index: (c, sdist node, row node, pose node a,
-    pose node b, body a, body b)}) of the program's rows `c - sdist(a, b)` (`sdist(...) >= c`
+    pose node b, (body a, body b))}) of the program's rows `c - sdist(a, b)` (`sdist(...) >= c`
     with a constant c) whose sdist and row nodes nothing else in the factor reads: such a row
     is at most c - (a lower bound of the distance), so it can be bounded before the distance
     is computed (`_values_of_rows` with `below`)."""
     t = prog.table
+    candidates = []
+    for i, (eq, h) in enumerate(prog.rows):
+        if eq or t.prefix[h] != ("sub",) or h in t.const or len(t.kids[h]) != 2:
+            continue
+        c, s = t.kids[h]
+        if c not in t.const or t.const[c].shape != (1,) or s in t.const or t.prefix[s][0] != "sdist":
+            continue
+        candidates.append((i, h, c, s))
+    if not candidates:
+        return prog.steps, {}
     users: dict[int, int] = {}
     for nid in prog.steps:
         for k in t.kids[nid]:
@@ -445,17 +455,12 @@ def _far_rows(prog: _Program) -> tuple:
     for _, h in prog.rows:
         users[h] = users.get(h, 0) + 1
     rows: dict[int, tuple] = {}
-    for i, (eq, h) in enumerate(prog.rows):
-        if eq or t.prefix[h] != ("sub",) or h in t.const or len(t.kids[h]) != 2:
-            continue
-        c, s = t.kids[h]
-        if c not in t.const or t.const[c].shape != (1,) or s in t.const or t.prefix[s][0] != "sdist":
-            continue
+    for i, h, c, s in candidates:
         if users.get(h) != 1 or users.get(s) != 1:
             continue
         _, na, la, nb, lb = t.prefix[s]
         _, ka, kb = t.kids[s]
-        rows[i] = (float(t.const[c][0]), s, h, ka, kb, Body(na, la), Body(nb, lb))
+        rows[i] = (float(t.const[c][0]), s, h, ka, kb, (Body(na, la), Body(nb, lb)))
     deferred = {x for r in rows.values() for x in r[1:3]}
     return tuple(nid for nid in prog.steps if nid not in deferred), rows
 
@@ -464,6 +469,10 @@ _RADII: dict[tuple, float] = {}
 """(geometry token, body name, link) -> radius about the body's frame origin of a ball holding
 its shapes: |c| + |h| of the body's local box (coal's local AABBs, exact for boxes, cylinders
 and convex hulls), inf when the geometry has no such box."""
+
+
+_RSUM: dict[tuple, float] = {}
+"""(geometry token, (body a, body b)) -> the sum of their `_radius`."""
 
 
 def _radius(g: Any, token: int, body: Body) -> float:
@@ -477,6 +486,7 @@ def _radius(g: Any, token: int, body: Body) -> float:
             r = math.inf
         if len(_RADII) > 10_000:
             _RADII.clear()
+            _RSUM.clear()
         r = _RADII[key] = r if r == r else math.inf
     return r
 
@@ -654,7 +664,10 @@ def _values_of_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m
 
 def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: dict,
                   token: int, below: float) -> tuple[_Program, list[np.ndarray]]:
-    """`_values_of_rows` with the broadphase `below` (see there)."""
+    """`_values_of_rows` with the broadphase `below` (see there). Rows with a bounded row are
+    remembered apart from the exact ones (`_Program.far`'s last entry), with their `below`:
+    they answer a later call at the same input whose `below` is not lower (its bounds are
+    then below that threshold too)."""
     try:
         prog = _program(factor)
         key: list = [token]
@@ -667,14 +680,18 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
                     raise EvaluationError(f"no value for variable {var}") from None
                 x = m[nid] = np.asarray(raw, float).reshape(-1)
             key.append(x.tobytes())
-        hs = prog.recent.get(tuple(key))
+        k = tuple(key)
+        hs = prog.recent.get(k)
         if hs is not None:
             return prog, hs
         if prog.far is None:
-            prog.far = _far_rows(prog)
-        steps, far = prog.far
+            prog.far = (*_far_rows(prog), {})
+        steps, far, held = prog.far
         if not far:
             return _values_of_rows(factor, values, m, token)
+        hit = held.get(k)
+        if hit is not None and hit[0] <= below:
+            return prog, hit[1]
         const = prog.table.const
         for nid in prog.consts:
             if nid not in m:
@@ -682,36 +699,48 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
         ops, args = prog.table.op, prog.table.kids
         for nid in steps:
             if nid not in m:
-                m[nid] = _vec(ops[nid](*[m[k] for k in args[nid]]))
+                ks = args[nid]
+                if len(ks) == 2:
+                    m[nid] = _vec(ops[nid](m[ks[0]], m[ks[1]]))
+                elif len(ks) == 1:
+                    m[nid] = _vec(ops[nid](m[ks[0]]))
+                else:
+                    m[nid] = _vec(ops[nid](*[m[k] for k in ks]))
         geometry = m[_GEO]
         hs = []
         bounded = False
         for i, (_, h) in enumerate(prog.rows):
             x = m.get(h)
-            row = far.get(i) if x is None else None
-            if row is not None:
-                c, s, _, ka, kb, ba, bb = row
-                pa, pb = m[ka], m[kb]
-                d = pa[:3] - pb[:3]
-                bound = c - (math.sqrt(float(d @ d)) - _radius(geometry, token, ba) - _radius(geometry, token, bb))
-                if bound < below:        # NaN: never
-                    hs.append(np.array([bound]))
-                    bounded = True
-                    continue
-                for nid in (s, h):
-                    if nid not in m:
-                        m[nid] = _vec(ops[nid](*[m[k] for k in args[nid]]))
-                x = m[h]
+            if x is None:
+                row = far.get(i)
+                if row is not None:
+                    c, s, _, ka, kb, pair = row
+                    r = _RSUM.get((token, pair))
+                    if r is None:
+                        r = _RSUM[(token, pair)] = _radius(geometry, token, pair[0]) + _radius(geometry, token, pair[1])
+                    d = m[ka][:3] - m[kb][:3]
+                    bound = c - math.sqrt(float(d @ d)) + r
+                    if bound < below:        # NaN: never
+                        hs.append(np.array([bound]))
+                        bounded = True
+                        continue
+                    if s not in m:
+                        ks = args[s]
+                        m[s] = _vec(ops[s](m[ks[0]], m[ks[1]], m[ks[2]]))
+                    ks = args[h]
+                    x = m[h] = _vec(ops[h](m[ks[0]], m[ks[1]]))
+                else:
+                    x = m[h]
             hs.append(x)
     except EvaluationError:
         raise
     except _ERRORS as err:
         raise EvaluationError(f"{getattr(factor, 'label', factor)}: {type(err).__name__}: {err}") \
             from err
-    if not bounded:
-        if len(prog.recent) >= _RECENT:
-            del prog.recent[next(iter(prog.recent))]
-        prog.recent[tuple(key)] = hs
+    store = held if bounded else prog.recent
+    if len(store) >= _RECENT:
+        del store[next(iter(store))]     # oldest first
+    store[k] = (below, hs) if bounded else hs
     return prog, hs
 
 

@@ -97,3 +97,17 @@ def test_a_row_that_reads_the_distance_otherwise_is_computed():
         geo = _Cubes()
         assert factor_margins([f], values, geo, floor=-0.05) == factor_margins([f], values, _Cubes())
         assert geo.calls == 1
+
+
+def test_bounded_rows_are_remembered_for_thresholds_not_below_theirs():
+    factors, values = _scene()
+    geo = _Cubes()
+    first = factor_margins(factors, values, geo, floor=-0.05)
+    assert geo.calls == 2
+    # asked again (the same input, the same or a higher threshold): nothing computed again
+    assert factor_margins(factors, values, geo, floor=-0.05) == first and geo.calls == 2
+    assert max_violation(factors, values, geo)[0] == max_violation(factors, values, _Cubes())[0]
+    assert geo.calls == 2
+    # a lower floor than the remembered bound's threshold: the far distance is computed
+    deep = factor_margins(factors, values, geo, floor=-5.0)
+    assert geo.calls == 3 and np.isclose(deep[1], 0.01 - 1.8)
