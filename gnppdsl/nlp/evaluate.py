@@ -432,8 +432,8 @@ class _Program:
 
 
 def _far_rows(prog: _Program) -> tuple:
-    """(the steps without the deferred ones, {row index: (c, sdist node, row node, pose node a,
-    pose node b, (body a, body b))}) of the program's rows `c - sdist(a, b)` (`sdist(...) >= c`
+    """{row index: (c, sdist node, row node, pose node a, pose node b, (body a, body b))} of
+    the program's rows `c - sdist(a, b)` (`sdist(...) >= c`
     with a constant c) whose sdist and row nodes nothing else in the factor reads: such a row
     is at most c - (a lower bound of the distance), so it can be bounded before the distance
     is computed (`_values_of_rows` with `below`)."""
@@ -447,7 +447,7 @@ def _far_rows(prog: _Program) -> tuple:
             continue
         candidates.append((i, h, c, s))
     if not candidates:
-        return prog.steps, {}
+        return {}
     users: dict[int, int] = {}
     for nid in prog.steps:
         for k in t.kids[nid]:
@@ -461,8 +461,7 @@ def _far_rows(prog: _Program) -> tuple:
         _, na, la, nb, lb = t.prefix[s]
         _, ka, kb = t.kids[s]
         rows[i] = (float(t.const[c][0]), s, h, ka, kb, (Body(na, la), Body(nb, lb)))
-    deferred = {x for r in rows.values() for x in r[1:3]}
-    return tuple(nid for nid in prog.steps if nid not in deferred), rows
+    return rows
 
 
 _RADII: dict[tuple, float] = {}
@@ -470,6 +469,12 @@ _RADII: dict[tuple, float] = {}
 its shapes: |c| + |h| of the body's local box (coal's local AABBs, exact for boxes, cylinders
 and convex hulls), inf when the geometry has no such box."""
 
+
+_PENDING = object()
+"""Marks a deferred node in a call's memo while `_bounded_rows` runs a factor's steps."""
+_RECENT_BOUNDED = 2
+"""Bounded results remembered per factor (besides `_RECENT` exact ones): a check repeated at
+the same point (a phase's keyframes by the next phase, the whole graph's `known_solution`)."""
 
 _RSUM: dict[tuple, float] = {}
 """(geometry token, (body a, body b)) -> the sum of their `_radius`."""
@@ -685,8 +690,8 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
         if hs is not None:
             return prog, hs
         if prog.far is None:
-            prog.far = (*_far_rows(prog), {})
-        steps, far, held = prog.far
+            prog.far = (_far_rows(prog), {})
+        far, held = prog.far
         if not far:
             return _values_of_rows(factor, values, m, token)
         hit = held.get(k)
@@ -697,7 +702,12 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
             if nid not in m:
                 m[nid] = const[nid]
         ops, args = prog.table.op, prog.table.kids
-        for nid in steps:
+        # the far rows' distance and row nodes are skipped below (marked pending: nothing else
+        # of this factor reads them), unless another factor of this call computed them
+        pending = [x for row in far.values() for x in row[1:3] if x not in m]
+        for x in pending:
+            m[x] = _PENDING
+        for nid in prog.steps:
             if nid not in m:
                 ks = args[nid]
                 if len(ks) == 2:
@@ -706,6 +716,8 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
                     m[nid] = _vec(ops[nid](m[ks[0]]))
                 else:
                     m[nid] = _vec(ops[nid](*[m[k] for k in ks]))
+        for x in pending:
+            del m[x]
         geometry = m[_GEO]
         hs = []
         bounded = False
@@ -738,7 +750,7 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
         raise EvaluationError(f"{getattr(factor, 'label', factor)}: {type(err).__name__}: {err}") \
             from err
     store = held if bounded else prog.recent
-    if len(store) >= _RECENT:
+    if len(store) >= (_RECENT_BOUNDED if bounded else _RECENT):
         del store[next(iter(store))]     # oldest first
     store[k] = (below, hs) if bounded else hs
     return prog, hs
