@@ -432,8 +432,7 @@ class _Program:
 
 
 def _far_rows(prog: _Program) -> tuple:
-    """{row index: (c, sdist node, row node, pose node a, pose node b, (body a, body b))} of
-    the program's rows `c - sdist(a, b)` (`sdist(...) >= c`
+    """One byte per row of the program, 1 for its rows `c - sdist(a, b)` (`sdist(...) >= c`
     with a constant c) whose sdist and row nodes nothing else in the factor reads: such a row
     is at most c - (a lower bound of the distance), so it can be bounded before the distance
     is computed (`_values_of_rows` with `below`)."""
@@ -447,21 +446,18 @@ def _far_rows(prog: _Program) -> tuple:
             continue
         candidates.append((i, h, c, s))
     if not candidates:
-        return {}
+        return b""
     users: dict[int, int] = {}
     for nid in prog.steps:
         for k in t.kids[nid]:
             users[k] = users.get(k, 0) + 1
     for _, h in prog.rows:
         users[h] = users.get(h, 0) + 1
-    rows: dict[int, tuple] = {}
+    far = bytearray(len(prog.rows))
     for i, h, c, s in candidates:
-        if users.get(h) != 1 or users.get(s) != 1:
-            continue
-        _, na, la, nb, lb = t.prefix[s]
-        _, ka, kb = t.kids[s]
-        rows[i] = (float(t.const[c][0]), s, h, ka, kb, (Body(na, la), Body(nb, lb)))
-    return rows
+        if users.get(h) == 1 and users.get(s) == 1:
+            far[i] = 1
+    return bytes(far) if any(far) else b""
 
 
 _RADII: dict[tuple, float] = {}
@@ -477,7 +473,7 @@ _RECENT_BOUNDED = 2
 the same point (a phase's keyframes by the next phase, the whole graph's `known_solution`)."""
 
 _RSUM: dict[tuple, float] = {}
-"""(geometry token, (body a, body b)) -> the sum of their `_radius`."""
+"""(geometry token, prefix of an sdist node) -> the sum of its two bodies' `_radius`."""
 
 
 def _radius(g: Any, token: int, body: Body) -> float:
@@ -704,7 +700,14 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
         ops, args = prog.table.op, prog.table.kids
         # the far rows' distance and row nodes are skipped below (marked pending: nothing else
         # of this factor reads them), unless another factor of this call computed them
-        pending = [x for row in far.values() for x in row[1:3] if x not in m]
+        rows = prog.rows
+        pending = []
+        for i, flag in enumerate(far):
+            if flag:
+                h = rows[i][1]
+                for x in (args[h][1], h):
+                    if x not in m:
+                        pending.append(x)
         for x in pending:
             m[x] = _PENDING
         for nid in prog.steps:
@@ -721,17 +724,20 @@ def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: 
         geometry = m[_GEO]
         hs = []
         bounded = False
-        for i, (_, h) in enumerate(prog.rows):
+        prefix = prog.table.prefix
+        for i, (_, h) in enumerate(rows):
             x = m.get(h)
             if x is None:
-                row = far.get(i)
-                if row is not None:
-                    c, s, _, ka, kb, pair = row
+                if far[i]:
+                    cn, s = args[h]
+                    _, ka, kb = args[s]
+                    pair = prefix[s]                   # ("sdist", name a, link a, name b, link b)
                     r = _RSUM.get((token, pair))
                     if r is None:
-                        r = _RSUM[(token, pair)] = _radius(geometry, token, pair[0]) + _radius(geometry, token, pair[1])
+                        r = _RSUM[(token, pair)] = _radius(geometry, token, Body(pair[1], pair[2])) \
+                            + _radius(geometry, token, Body(pair[3], pair[4]))
                     d = m[ka][:3] - m[kb][:3]
-                    bound = c - math.sqrt(float(d @ d)) + r
+                    bound = const[cn][0] - math.sqrt(float(d @ d)) + r
                     if bound < below:        # NaN: never
                         hs.append(np.array([bound]))
                         bounded = True
