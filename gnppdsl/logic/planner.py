@@ -28,6 +28,7 @@ from gnppdsl import interrupt
 from gnppdsl.errors import SolveFailure
 from gnppdsl.logic.encoding import conflict_program, encode_task, lifted_conflict_program
 from gnppdsl.logic.learned import LearnedConstraints
+from gnppdsl.logic.lower_bound import plan_length_bound
 from gnppdsl.logic.validate import State, find_sequence, plan_cost
 
 DEFAULT_MAX_HORIZON = 64
@@ -103,13 +104,15 @@ class IncrementalPlanner(LearnedConstraints):
     Parameters: `max_horizon` bounds the search when a call does not give its own bound;
     `clingo_args` are passed to `clingo.Control` (e.g. `["--configuration=handy"]`);
     `invariants` adds h^2 mutexes to the encoding (sound; faster proofs of "no plan");
+    `lower_bound` starts the search at `lower_bound.plan_length_bound(task)` (no plan of the task
+    is shorter, so no horizon below it needs a proof: shortest plans stay shortest);
     `statistics` sums clingo's own search time into `stats.clingo_solve_time` (reading clingo's
     statistics costs about a millisecond per solve call, so it is off by default).
     """
 
     def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON,
                  clingo_args: Sequence[str] = DEFAULT_CLINGO_ARGS, invariants: bool = True,
-                 statistics: bool = False) -> None:
+                 statistics: bool = False, lower_bound: bool = True) -> None:
         self.task = task
         self.max_horizon = max_horizon
         self._statistics = statistics
@@ -126,6 +129,10 @@ class IncrementalPlanner(LearnedConstraints):
         self._lowest = 0             # smallest horizon that may still hold a plan
         self.conflict_budget: int | None = None   # clasp conflicts left for solve calls (None: no limit)
         self._ground([("base", ()), ("check", (0,))])
+        if lower_bound:
+            # after the encoding: its h^2 mutexes are cached (`mutex.h2_matrix`), the bound reuses them
+            bound = plan_length_bound(task)
+            self._lowest = max_horizon + 1 if bound is None else bound
 
     # ---- grounding ---------------------------------------------------------------------
     @property
