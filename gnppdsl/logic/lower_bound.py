@@ -11,9 +11,11 @@ conflicts and blocked plans only remove plans, so no plan under them is shorter 
 The bound: atomic projections (one state variable each, its domain transition graph) with
 cost partitioning (Katz & Domshlak 2008; Seipp & Helmert's "Additive abstraction heuristics").
 The projection onto variable v keeps v's value and drops every other variable; an operator
-that assigns v (unconditionally or under conditions) is an edge x -> y (x its precondition or
-effect condition on v, every value when it has none), so every plan of the task maps to a
-path from s0[v] in the projection, and the goal's value of v must be reached. An operator
+that assigns v (unconditionally or under conditions) is an edge x -> y for every value x it can
+meet: its precondition or effect condition on v, else every value that h^2 (`logic.mutex`)
+reaches together with its other preconditions (blocks world's place(b, x) tests only
+holding = b, which h^2 knows implies on(b) = hand). Every plan of the task maps to a path from
+s0[v] in the projection, and the goal's value of v must be reached. An operator
 costs one step in total: it is split among the chosen variables it can change (cost
 partitioning: the sum of its shares is at most 1), so the sum over the chosen variables of the
 cheapest path to the goal value is at most the number of steps of any plan. Two partitionings
