@@ -49,16 +49,23 @@ def test_unreachable_goal_has_no_bound():
     assert res.status is Status.NO_PLAN and planner.stats.solve_calls == 0
 
 
-def test_planner_starts_at_the_bound():
-    """No solve call for the horizons below the bound (the base proved each one empty: 2n - 1
-    calls before the plan), and the plan is still the shortest."""
+def test_cheap_horizons_below_the_bound_keep_the_first_plan(monkeypatch):
+    """Horizons below the bound that cost at most CHEAP_CONFLICTS are still solved (the same
+    nogoods, so the same first plan as without the bound); the first that costs more jumps to
+    the bound (the base proved every horizon: 2n - 1 solve calls before the plan)."""
+    from gnppdsl.logic import planner as planner_mod
+
     task = tower_task(5)
-    planner = IncrementalPlanner(task)
-    res = planner.shortest_plan()
-    assert res.found and len(res.plan) == 8 and res.plan.shortest
-    assert planner.stats.solve_calls == 1
     plain = IncrementalPlanner(task, lower_bound=False)
-    assert len(plain.shortest_plan().plan) == 8 and plain.stats.solve_calls == 9
+    first = plain.shortest_plan().plan
+    assert len(first) == 8 and plain.stats.solve_calls == 9
+    cheap = IncrementalPlanner(task)
+    assert cheap.shortest_plan().plan == first
+    monkeypatch.setattr(planner_mod, "CHEAP_CONFLICTS", 0)
+    jump = IncrementalPlanner(task)
+    res = jump.shortest_plan()
+    assert res.found and len(res.plan) == 8 and res.plan.shortest
+    assert jump.stats.solve_calls < 9 and jump.no_plan_below == 8
 
 
 def test_shortest_under_conflicts_matches_brute_force():
