@@ -46,7 +46,7 @@ from gnppdsl.nlp.graph import FactorRef, GraphNLP
 from gnppdsl.nlp import shape_cache
 from gnppdsl.nlp.monitor import START_HELD, IterationMonitor as _Monitor, raise_on_nan as _raise_on_nan
 
-#: the status of a run whose near start a few Gauss-Newton steps made hold
+#: the status of a run whose near start a few Levenberg-Marquardt steps made hold
 #: (`FeasibilitySolver._projected`): ipopt not run
 START_PROJECTED = "Start_Projected"
 from gnppdsl.nlp.solver_options import KINEMATIC_CURVATURE_MODES, CurvatureTrials, SolverOptions  # noqa: F401
@@ -583,7 +583,7 @@ class FeasibilitySolver:
         return a.near
 
     def _run(self, a: _Assembled, x0: np.ndarray, rho: float, warm: _Multipliers | None = None,
-             limit: int = 0) -> tuple[np.ndarray, float, int, str, _Multipliers | None]:
+             limit: int = 0, project: bool = True) -> tuple[np.ndarray, float, int, str, _Multipliers | None]:
         """One ipopt run from x0 with the pull rho towards it; `warm` = the multipliers of an
         earlier run from whose point x0 is (a polish): started from its z and multipliers
         (`_polisher`); `limit` > 0: at most that many iterations (an NLP with a monitor)."""
@@ -601,7 +601,7 @@ class FeasibilitySolver:
                     return x0.copy(), float(np.sum(z0[a.n_x:])), 0, START_HELD, None     # ipopt not run
                 # the slacks of z0 are the start's violations (`elastic_point`)
                 near = z0.size == a.n_x or float(z0[a.n_x:].max()) <= self.options.near_start_below
-                if near and a.monitor is not None and self.options.project_near_start:
+                if near and project and a.monitor is not None:
                     xp = self._projected(a, x0, rho, a.monitor.stop_below)
                     if xp is not None:
                         return xp, 0.0, 0, START_PROJECTED, None                # ipopt not run
@@ -623,49 +623,76 @@ class FeasibilitySolver:
             status = "Maximum_Iterations_Exceeded"    # the iteration budget's limit
         return z[:a.n_x], float(np.sum(z[a.n_x:])), int(st.get("iter_count", 0)), status, lam
 
-    def _projected(self, a: _Assembled, x0: np.ndarray, rho: float, stop_below: float,
-                   steps: int = 3) -> np.ndarray | None:
-        """A point near x0 where every row holds within `stop_below`, by at most `steps`
-        minimum-norm Gauss-Newton steps on the violated rows (the equalities and the
-        inequalities above 0, the latter aimed just inside) with the fixed variables held,
-        and the unit quaternions still unit; None when they do not get there (ipopt then
-        runs from x0). For a start whose rows
-        nearly hold (`near_start_below`): a motion between solved keyframes started on the
-        straight line between them, where ipopt's run is set-up and one or two iterations.
-        Measured on `bench_komo.py`'s path NLPs that miss by 2e-5 to 6e-4 (12 seeds): every
-        one projected in 1-2 steps, 3.3-5.8 ms against ipopt's 7.2-11.8 ms; the point differs
-        from ipopt's by at most 7e-4 rad. The verdict is taken on the real rows at the point,
-        as for every run (`_verdict`)."""
+    def _projected(self, a: _Assembled, x0: np.ndarray, rho: float, stop_below: float
+                   ) -> np.ndarray | None:
+        """A point where every row holds within `stop_below`, found from a near start x0 by at
+        most `gauss_newton_steps` Levenberg-Marquardt steps on the rows, or None when they do
+        not get there (ipopt then runs from x0, as without them). Each step: the minimum-norm
+        correction of the equality rows and of the violated inequality rows (aimed just
+        inside), the inequality rows within 1e-3 of their bound kept to first order, the fixed
+        variables held; damped by min(1e-2, 1e-2 |residual|); halved until the rows' total or
+        largest violation decreases; clipped to the bounds. Given up when neither decreases,
+        or the largest violation has not halved in 3 steps; not tried when a free variable
+        holds a unit quaternion (the steps know only the rows).
+
+        Why: a motion between solved keyframes started on the straight line between them
+        misses by 2e-5 to 6e-4 on `bench_komo.py`, and ipopt's run there is set-up and 1-2
+        iterations (7-12 ms); these steps get there in 1-2 (3-6 ms). The verdict is taken on
+        the real rows at the point, as for every run (`_verdict`); an infeasible verdict
+        always comes from ipopt. Not from far starts: measured on the keyframe NLP (11 of 12
+        seeds in 11-15 steps, median 24 -> 12 ms) the points hug the joint bounds and rows
+        that ipopt's pull keeps clear of, and on Lab 1 the active set then added two pairs and
+        a second NLP (CPU 1.1 -> 1.2-1.6 s)."""
         root = a.root or a
         jac = root.solver.get_function("nlp_jac_g") if root.spec and root.spec[1] == "ipopt" else None
-        if jac is None:
+        steps = self.options.gauss_newton_steps
+        if jac is None or steps <= 0:
             return None
         lo, up = a.lbx[:a.n_x], a.ubx[:a.n_x]
         free = lo < up
+        if any(free[o + sl.start:o + sl.stop].any() for v, o in zip(a.variables, a.offsets)
+               for sl in _quat_slices(v)):
+            return None
         g_row = g_rows_of(a)
         p = a.p_dm(x0, rho)
-        x, h = x0, a.rows(x0)
-        worst = np.inf
-        for _ in range(steps):
-            viol = np.where(a.kinds, np.abs(h), np.maximum(h, 0.0))
-            now = float(viol.max(initial=0.0))
-            if not now < 0.5 * worst:      # not converging (or NaN): leave it to ipopt
+
+        def point(y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            y = np.clip(y, lo, up)
+            hy = a.rows(y)
+            return y, hy, np.where(a.kinds, np.abs(hy), np.maximum(hy, 0.0))
+
+        x, h, viol = point(np.array(x0, dtype=float))
+        total, worst, best, since = float(viol.sum()), float(viol.max(initial=0.0)), np.inf, 0
+        for k in range(steps + 1):
+            if not np.isfinite(total):
                 return None
-            worst = now
-            V = np.flatnonzero(a.kinds | (h > 0.0))
+            if worst <= stop_below:
+                return x
+            since = 0 if worst <= 0.5 * best else since + 1
+            best = min(best, worst)
+            if since >= 3 or k == steps:
+                return None
+            V = np.flatnonzero(a.kinds | (h > -1e-3))
             J = ca.DM(jac(elastic_point(a, x), p)[1][g_row[V].tolist(), :a.n_x]).full()
             J[:, ~free] = 0.0
-            target = np.where(a.kinds[V], 0.0, -stop_below * 1e-2)
-            d = np.linalg.lstsq(J, target - h[V], rcond=None)[0]
-            x = np.clip(x + d, lo, up)
-            h = a.rows(x)
-            viol = np.where(a.kinds, np.abs(h), np.maximum(h, 0.0))
-            if float(viol.max(initial=0.0)) <= stop_below:
-                # the unit quaternions too (the steps know only the rows; fixed ones stay)
-                units = [abs(float(np.dot(q, q)) - 1.0) for q in
-                         (x[o + sl.start:o + sl.stop] for v, o in zip(a.variables, a.offsets)
-                          for sl in _quat_slices(v))]
-                return x if max(units, default=0.0) <= stop_below else None
+            hv = h[V]
+            r = np.where(a.kinds[V], -hv, np.where(hv > 0.0, -stop_below * 1e-2 - hv, 0.0))
+            damp = max(min(1e-2, 1e-2 * float(np.abs(r).max(initial=0.0))), 1e-12)
+            try:
+                d = J.T @ np.linalg.solve(J @ J.T + damp * np.eye(r.size), r)
+            except np.linalg.LinAlgError:
+                return None
+            t = 1.0
+            while True:
+                y, hy, vy = point(x + t * d)
+                better = float(vy.sum()) < total or float(vy.max(initial=0.0)) < worst
+                if better or t < 0.06:
+                    break
+                t *= 0.5
+            if not better:
+                return None
+            x, h, viol = y, hy, vy
+            total, worst = float(viol.sum()), float(viol.max(initial=0.0))
         return None
 
     @staticmethod
@@ -758,7 +785,10 @@ class FeasibilitySolver:
                     b = exact
                 if best is not None and spent():
                     break                    # the iteration budget is spent
-                x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **left())
+                # (the exact twin's run: the steps before ipopt do not read the Hessian, and
+                # from the same start they already failed)
+                x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **left(),
+                                                      project=b is a)
                 iters += it
                 starts += 1
                 values, per, worst = self._verdict(b, x)

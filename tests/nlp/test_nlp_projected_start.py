@@ -3,7 +3,7 @@ minimum-norm Gauss-Newton steps on its violated rows (`FeasibilitySolver._projec
 they make every row hold within the monitor's threshold, that point is the answer and ipopt
 does not run (on `bench_komo.py`'s path NLPs ipopt's run there was set-up and 1-2 iterations,
 7-12 ms, the steps 3-6 ms). Checked: such a start comes back feasible, near the start, with its
-rows holding by an independent evaluation and no ipopt run; with `project_near_start` off, or
+rows holding by an independent evaluation and no ipopt run; with `gauss_newton_steps` 0, or
 from a start that is not near, ipopt runs as before."""
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def test_a_near_start_is_projected_without_an_ipopt_run():
 
 def test_without_projection_ipopt_runs():
     g, start = _near_start()
-    s = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=0, assembly="MX", project_near_start=False))
+    s = FeasibilitySolver(ARM_GEOM, SolverOptions(restarts=0, assembly="MX", gauss_newton_steps=0))
     r = s.solve(g, warm_start=start, seed=1)
     assert r.feasible and r.status != START_PROJECTED and s.solves >= 1
 
