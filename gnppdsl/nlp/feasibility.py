@@ -293,6 +293,7 @@ class FeasibilitySolver:
         self.curvature_fallbacks = 0    # solves whose linearised runs failed and got exact ones
         self.curvature_rescues = 0      # ... of which the exact Hessian made feasible
         self._exact_pass = False        # assembling the exact Hessian (`exact_assembly`)
+        self._project = True            # a near start may take `_projected`'s steps (`solve`)
         self.trials = CurvatureTrials()  # ... how its linearised runs fared (a loop shares one)
         kc = self.options.kinematic_curvature
         if kc not in KINEMATIC_CURVATURE_MODES:
@@ -583,7 +584,7 @@ class FeasibilitySolver:
         return a.near
 
     def _run(self, a: _Assembled, x0: np.ndarray, rho: float, warm: _Multipliers | None = None,
-             limit: int = 0, project: bool = True) -> tuple[np.ndarray, float, int, str, _Multipliers | None]:
+             limit: int = 0) -> tuple[np.ndarray, float, int, str, _Multipliers | None]:
         """One ipopt run from x0 with the pull rho towards it; `warm` = the multipliers of an
         earlier run from whose point x0 is (a polish): started from its z and multipliers
         (`_polisher`); `limit` > 0: at most that many iterations (an NLP with a monitor)."""
@@ -601,7 +602,7 @@ class FeasibilitySolver:
                     return x0.copy(), float(np.sum(z0[a.n_x:])), 0, START_HELD, None     # ipopt not run
                 # the slacks of z0 are the start's violations (`elastic_point`)
                 near = z0.size == a.n_x or float(z0[a.n_x:].max()) <= self.options.near_start_below
-                if near and project and a.monitor is not None:
+                if near and self._project and a.monitor is not None:
                     xp = self._projected(a, x0, rho, a.monitor.stop_below)
                     if xp is not None:
                         return xp, 0.0, 0, START_PROJECTED, None                # ipopt not run
@@ -785,10 +786,11 @@ class FeasibilitySolver:
                     b = exact
                 if best is not None and spent():
                     break                    # the iteration budget is spent
-                # (the exact twin's run: the steps before ipopt do not read the Hessian, and
+                # (not the exact twin's run: the near-start steps do not read the Hessian, and
                 # from the same start they already failed)
-                x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **left(),
-                                                      project=b is a)
+                self._project = b is a
+                x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **left())
+                self._project = True
                 iters += it
                 starts += 1
                 values, per, worst = self._verdict(b, x)
