@@ -45,11 +45,11 @@ from gnppdsl.nlp.geometry_protocol import DISTANCE_PRIMITIVES, Geometry
 from gnppdsl.nlp.graph import FactorRef, GraphNLP
 from gnppdsl.nlp import shape_cache
 from gnppdsl.nlp.monitor import START_HELD, IterationMonitor as _Monitor, raise_on_nan as _raise_on_nan
+from gnppdsl.nlp.solver_options import KINEMATIC_CURVATURE_MODES, CurvatureTrials, SolverOptions  # noqa: F401
 
 #: the status of a run whose near start a few Levenberg-Marquardt steps made hold
 #: (`FeasibilitySolver._projected`): ipopt not run
 START_PROJECTED = "Start_Projected"
-from gnppdsl.nlp.solver_options import KINEMATIC_CURVATURE_MODES, CurvatureTrials, SolverOptions  # noqa: F401
 
 
 @dataclass
@@ -789,8 +789,10 @@ class FeasibilitySolver:
                 # (not the exact twin's run: the near-start steps do not read the Hessian, and
                 # from the same start they already failed)
                 self._project = b is a
-                x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **left())
-                self._project = True
+                try:
+                    x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **left())
+                finally:
+                    self._project = True
                 iters += it
                 starts += 1
                 values, per, worst = self._verdict(b, x)
