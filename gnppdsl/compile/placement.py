@@ -27,28 +27,14 @@ placement only decides the side. Nearest the home base instead (before), a put a
 on the far side of the table got a restart base on the side nearest home, away from where the
 base stood.
 
-R-LGP's keyframe starts (`restart_guesses(across_rings=True)`, `solve.rlgp`) choose per plan
-instead (`plan_bases`): one free point of any ring per pick or put, together the shortest drive
-from home through all of them in the plan's order (a dynamic programme over the targets' ring
-points; the drive between two points by `TravelMap`, around the tables' footprints grown by the
-base's radius). Why: the side nearest the previous base can be the wrong one for the rest of the
-plan. sort_random_pr2 instance 4 (seed 0): the greedy choice put the second pick (blue1, west
-of the table's centre) west of it, the nearest side to the red tray's base; the NLP slid the base
-to the north and the plan drove 4.28 m (GNPP 2.20 m). The plan's choice picks it from the south,
-where the drive to the blue tray goes: 2.44 m, 10.8 s CPU instead of 18.6, verified. A point
-beyond the innermost ring costs RING_WEIGHT metres of drive per metre (the NLP has to pull an
-out-of-reach base in; without it instance 0's first pick started on the PR2's 1.1 m ring and the
-run drove 4.07 m). Measured (`gnpp bench examples/mobile/sort_random_pr2.pntc --algorithms rlgp
---instances 10 --time-limit 120`, GNPP_REACH_CACHE=0, 996040d against this, load 4-9):
-sort_random_pr2 R-LGP solved 9/10 both (996040d failed instance 5's verification, this
-instance 8's), mean base on the 7 both solved 3.10 -> 2.82 m (GNPP 2.88), on the 9 this and GNPP
-solved 2.92 m against GNPP's 3.36; sort_random (Panda) 10/10 both, mean base 2.82 -> 2.94 m
-(instances 4, 6, 7 longer, 5 and 9 shorter), mean CPU 6.1 -> 5.7 s.
+R-LGP's keyframe starts choose all of a robot's bases of a plan at once instead: `restart_guesses`
+takes that choice as `plan` (`gnppdsl.reach.drives.plan_bases`, the shortest drive through the
+ring points; R-LGP's module, above this layer, passes it in).
 """
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 if TYPE_CHECKING:  # pragma: no cover
     from gnppdsl.compile.factors import VarInstance
@@ -57,7 +43,6 @@ if TYPE_CHECKING:  # pragma: no cover
 RADII = (0.25, 0.45, 0.65)      # base-to-target distances tried beyond the footprint radius (m)
 ANGLES = 16                     # points per ring
 BASE_RADIUS = 0.3               # the footprint radius when the robot names no base link
-RING_WEIGHT = 0.5               # plan_bases: drive (m) a ring point costs per metre beyond the innermost ring
 
 
 def base_radius(spec) -> float:
@@ -152,145 +137,16 @@ def base_next_to(target: Sequence[float], home: Sequence[float], obstacles,
     return None
 
 
-class TravelMap:
-    """Shortest drives of a disc of `radius` among the obstacles' footprints (the metric of
-    `plan_bases`): each footprint grown by `radius`, as the octagon around it (a box's
-    rectangle grown by `radius` on each side with its corners cut by the tangents of the
-    rounded corners at 45 degrees; any other shape's circle), the distance between two points
-    the straight line when it crosses no octagon's interior, else the shortest path through
-    the octagons' vertices (a visibility graph; vertices inside another octagon or outside
-    `lo`/`hi` are left out). Contains the disc's Minkowski sum, so a free drive is one."""
-
-    def __init__(self, obstacles, radius: float, lo=None, hi=None):
-        import numpy as np
-
-        from gnppdsl.ir.instances import footprint_radius
-
-        r2 = math.sqrt(2.0)
-        self.planes = []                  # per octagon: normals (8, 2), offsets (8,): n.p <= b
-        corners = []
-        for o in obstacles:
-            size = tuple(o.shape.size or ())
-            if o.shape.kind == "box" and len(size) >= 2:
-                t, ex, ey = _yaw(o.pose[3:7]), size[0] / 2, size[1] / 2
-            else:
-                t, ex, ey = 0.0, footprint_radius(o), footprint_radius(o)
-            ax, ay = ex + radius, ey + radius
-            cut = ex + ey + radius * r2
-            local_n = np.array([[1, 0], [-1, 0], [0, 1], [0, -1],
-                                [1 / r2, 1 / r2], [-1 / r2, 1 / r2], [-1 / r2, -1 / r2], [1 / r2, -1 / r2]])
-            local_b = np.array([ax, ax, ay, ay] + [cut / r2] * 4)
-            d = radius * (r2 - 1)
-            local_v = [(sx * ax, sy * (ey + d)) for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
-            local_v += [(sx * (ex + d), sy * ay) for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
-            c, s = math.cos(t), math.sin(t)
-            R = np.array([[c, -s], [s, c]])
-            centre = np.array([float(o.pose[0]), float(o.pose[1])])
-            N = local_n @ R.T
-            self.planes.append((N, local_b + N @ centre))
-            corners += [tuple(R @ (np.asarray(v) * (1 + 1e-6)) + centre) for v in local_v]
-        K = np.asarray(corners, float).reshape(-1, 2)
-        if len(K) and lo is not None and hi is not None:
-            K = K[(K[:, 0] >= lo[0]) & (K[:, 0] <= hi[0]) & (K[:, 1] >= lo[1]) & (K[:, 1] <= hi[1])]
-        if len(K):
-            K = K[~self._inside(K)]
-        self.corners = K
-        D = self._direct(K, K)            # all-pairs shortest paths among the vertices
-        for k in range(len(K)):
-            D = np.minimum(D, D[:, k:k + 1] + D[k:k + 1, :])
-        self.between = D
-
-    def _inside(self, P):
-        import numpy as np
-
-        out = np.zeros(len(P), bool)
-        for N, b in self.planes:
-            out |= np.all(P @ N.T < b - 1e-9, axis=1)
-        return out
-
-    def _blocked(self, P, Q):
-        """Per pair (P[i], Q[i]): does the segment cross an octagon's interior (Cyrus-Beck)?"""
-        import numpy as np
-
-        out = np.zeros(len(P), bool)
-        D = Q - P
-        for N, b in self.planes:
-            t0, t1 = np.zeros(len(P)), np.ones(len(P))
-            hit = np.ones(len(P), bool)
-            for n, bk in zip(N, b):
-                pk, qk = D @ n, (bk - 1e-9) - P @ n        # n.(p + t d) < b: pk t < qk
-                par = np.abs(pk) < 1e-15
-                hit &= ~(par & (qk <= 0))
-                r = qk / np.where(par, 1.0, pk)
-                t0 = np.where(~par & (pk < 0), np.maximum(t0, r), t0)
-                t1 = np.where(~par & (pk > 0), np.minimum(t1, r), t1)
-            out |= hit & (t1 - t0 > 1e-9)
-        return out
-
-    def _direct(self, A, B):
-        """|a - b| where the segment is free, inf where it is blocked: shape (len A, len B)."""
-        import numpy as np
-
-        A, B = np.asarray(A, float).reshape(-1, 2), np.asarray(B, float).reshape(-1, 2)
-        d = np.linalg.norm(A[:, None, :] - B[None, :, :], axis=2)
-        if len(A) and len(B) and self.planes:
-            P = np.repeat(A, len(B), axis=0)
-            Q = np.tile(B, (len(A), 1))
-            d = np.where(self._blocked(P, Q).reshape(len(A), len(B)), np.inf, d)
-        return d
-
-    def distances(self, A, B):
-        """The drives from each point of A to each of B: shape (len A, len B)."""
-        import numpy as np
-
-        d = self._direct(A, B)
-        if len(self.corners):
-            to = (self._direct(A, self.corners)[:, :, None] + self.between[None]).min(axis=1)
-            via = (to[:, :, None] + self._direct(self.corners, B)[None]).min(axis=1)
-            d = np.minimum(d, via)
-        return d
-
-
-def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstacles,
-               lo: Sequence[float] | None = None, hi: Sequence[float] | None = None,
-               radius: float = BASE_RADIUS) -> list[list[float] | None]:
-    """One base per target (the robot's picks and puts in the plan's order), each a free point
-    of any ring around its target (`_ring_points`), together the least drive home -> first ->
-    ... -> last (`TravelMap`'s distances; a dynamic programme over the targets' ring points),
-    facing its target (`_facing`). None for a target without a free ring point (the chain
-    skips it)."""
-    import numpy as np
-
-    travel = TravelMap(obstacles, radius, lo, hi)
-    layers = []                           # (target index, points (n, 2), their ring penalties)
-    for i, t in enumerate(targets):
-        pts = _ring_points(t, obstacles, lo, hi, radius)
-        if pts:
-            layers.append((i, np.asarray([(x, y) for x, y, _ in pts], float),
-                           np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts])))
-    out: list = [None] * len(targets)
-    if not layers:
-        return out
-    cost = travel.distances(np.asarray([home[:2]], float), layers[0][1])[0] + layers[0][2]
-    back = []
-    for (_, a, _), (_, b, pen) in zip(layers, layers[1:]):
-        total = cost[:, None] + travel.distances(a, b) + pen[None, :]
-        back.append(total.argmin(axis=0))
-        cost = total.min(axis=0)
-    k = int(np.argmin(cost))              # first of the least (ring order breaks ties)
-    for j in range(len(layers) - 1, -1, -1):
-        i, pts, _ = layers[j]
-        out[i] = _facing(home, float(pts[k][0]), float(pts[k][1]), targets[i])
-        if j:
-            k = int(back[j - 1][k])
-    return out
+PlanBases = Callable[..., list]
+"""(targets, home, obstacles, lo, hi, radius=) -> one base (or None) per target: a robot's bases
+for all its picks and puts of a plan at once (`gnppdsl.reach.drives.plan_bases`)."""
 
 
 def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance"],
-                    states: Sequence[Sequence[int]], across_rings: bool = False) -> dict["VarInstance", list[float]]:
+                    states: Sequence[Sequence[int]], plan: PlanBases | None = None) -> dict["VarInstance", list[float]]:
     """The base placements of the keyframe variables among `variables` (see the module
-    docstring; `across_rings`: `base_next_to`'s); empty when the scene has no robot with a
-    planar base."""
+    docstring): each robot's from `plan` when given, else one by one (`base_next_to`, nearest
+    the previous base); empty when the scene has no robot with a planar base."""
     scene, task = factory.scene, factory.task
     if scene is None or getattr(scene, "dimension", 3) != 3:
         return {}
@@ -336,8 +192,8 @@ def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance
         spec = mobile[robot]
         lo, hi = spec.attributes.get("base_min"), spec.attributes.get("base_max")
         mine = sorted((t for t in targets if t[1] == robot), key=lambda t: t[0])
-        if across_rings:                  # the plan's least drive over every ring's points
-            qs = plan_bases([t[3] for t in mine], spec.home, obstacles, lo, hi, radius=radii[robot])
+        if plan is not None:              # the plan's choice (R-LGP: the least drive)
+            qs = plan([t[3] for t in mine], spec.home, obstacles, lo, hi, radius=radii[robot])
             out.update({t[2]: q for t, q in zip(mine, qs) if q is not None})
             continue
         previous = list(spec.home)        # the base before the step
@@ -349,4 +205,4 @@ def restart_guesses(factory: "GraphNLPFactory", variables: Sequence["VarInstance
     return out
 
 
-__all__ = ["restart_guesses", "base_next_to", "plan_bases", "TravelMap", "base_radius", "RADII", "ANGLES", "BASE_RADIUS"]
+__all__ = ["restart_guesses", "base_next_to", "base_radius", "RADII", "ANGLES", "BASE_RADIUS"]

@@ -409,7 +409,7 @@ class DomainResolver:
                 if report:
                     cands = [k.rsplit(".", 1)[1] for k in self.template_asts if k.startswith(mod + ".")]
                     self.err(c.qname[1].span, f"unknown template '{q}'", "unknown-template",
-                             did_you_mean(short, cands))
+                             did_you_mean(short, cands, prefix=f"{mod}."))
                 return None
             return q
         short = c.qname[0].value

@@ -9,6 +9,8 @@ Modules (imported on demand, so `import gnppdsl.reach` stays cheap):
   Gaussian enhancement; `path`, `travel_cost`, `query`, `query_configs`)
 - `integration`: `build_from_problem`, `operator_targets`, `heuristic_pair_costs`,
   `warmstart_waypoints` (what the solve loop calls; Alg. 1's heuristicCost and getWaypoints)
+- `drives`: `TravelMap` (a base's drives among the tables' grown footprints), `plan_bases` (the
+  keyframe bases of a plan's least drive: R-LGP's keyframe starts)
 
 Typical use by the solve loop (R-LGP, `algorithm = rlgp`):
 
@@ -29,6 +31,8 @@ _EXPORTS = {
     "heuristic_pair_costs": "gnppdsl.reach.integration",
     "pair_costs_from_problem": "gnppdsl.reach.integration",
     "warmstart_waypoints": "gnppdsl.reach.integration",
+    "TravelMap": "gnppdsl.reach.drives",
+    "plan_bases": "gnppdsl.reach.drives",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -7,7 +7,10 @@ R-LGP, and every `gnpp solve` of a scene rebuilt the same graph. What is kept is
 random generator's state after the draws and the build statistics. A graph restored from it
 equals the one built (same nodes, same edges, same random stream afterwards, so the same
 queries, plans and results); the lazy edge checks and enhancements of a run stay in that run,
-so a solve's result never depends on what ran before it.
+so a solve's result never depends on what ran before it. The outcomes of the lazy edge checks
+are kept beside it (`load_checks` / `save_checks`, `<key>.checks.json`): each is a function of
+the two configurations and of what the key covers, so a stored answer is the one the check
+would give (`ReachabilityGraph.check_edge`); at most MAX_CHECKS, the latest.
 
 Key: everything the build reads, as a digest: the code version (`nlp.function_store`: package
 sources, casadi, pinocchio, Python), the settings, the robot's URDF and SRDF contents, its
@@ -26,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 FORMAT = 2     # 2: edges turn angles the short way round (a format-1 store predates that)
+MAX_CHECKS = 50_000     # edge-check outcomes kept per graph (~2 MB of JSON)
 
 
 def default_directory() -> Path | None:
@@ -95,3 +99,20 @@ def save(key: str, payload: dict) -> bool:
     except UserError:
         return False
     return True
+
+
+def load_checks(key: str) -> dict[str, bool]:
+    """The stored edge-check outcomes of `key`'s graph (segment key -> free), {} when none."""
+    data = load(f"{key}.checks")
+    if data is None or not isinstance(data.get("checks"), dict):
+        return {}
+    return {str(k): bool(v) for k, v in data["checks"].items()}
+
+
+def save_checks(key: str, checks: dict[str, bool]) -> bool:
+    """Store `checks` (merged with what another process stored meanwhile; the latest
+    MAX_CHECKS)."""
+    merged = {**load_checks(key), **checks}
+    if len(merged) > MAX_CHECKS:
+        merged = dict(list(merged.items())[-MAX_CHECKS:])
+    return save(f"{key}.checks", {"checks": {k: int(v) for k, v in merged.items()}})

@@ -62,11 +62,17 @@ def _parents(result: Any, step: int) -> dict[str, str]:
     return {o: p for var, o, p in _FACT.findall(result.steps[step].state) if var == "parent"}
 
 
-def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | None, str, str, float]]:
-    """(step, waypoint, body a, body b, distance) of every covered pair the verification found
-    closer than margin + near (`verify`), except resting and grasp contacts (an object with its
-    parent) and the sliding contact of an object riding on a held tool with the static body it
-    rests on at the motion's first keyframe (`SolutionReport.riding`; the domain's push rows,
+Near = tuple[int, "float | None", str, str, float]
+"""(step, waypoint, body a, body b, distance): a pair at a keyframe (waypoint None), a waypoint
+or a segment midpoint of the motion s_step -> s_step+1."""
+
+
+def near_pairs(result: Any, candidates: list[Near], riding: dict | None = None) -> list[Near]:
+    """The `candidates` (the verification's `SolutionReport.near`: every covered pair closer
+    than margin + near, `verify`; or `along_motion`'s spread) except resting and grasp contacts
+    (an object with its parent) and the sliding contact of an object riding on a held tool with
+    the static body it rests on at the motion's first keyframe (`riding`: the report's
+    `SolutionReport.riding`; the domain's push rows,
     stdlib/tools.pntc `push_path`, keep it on that support's plane along the motion, and the
     verification still checks the pair at its resting margin). Why: a pushed block slides on
     the table at signed distance 0, where the witness points jump; its rows, fixed keyframes
@@ -74,9 +80,12 @@ def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | N
     `avoid(table, b1)` at waypoints 6-11 of motion 2) and sent it on to the joint solves."""
     out = []
     owner = lambda x: x.split("/", 1)[0]       # noqa: E731
-    riding = getattr(report, "riding", {})
-    for step, wp, a, b, d in report.near:
-        parents = _parents(result, step)
+    riding = riding or {}
+    by_step: dict[int, dict[str, str]] = {}
+    for step, wp, a, b, d in candidates:
+        parents = by_step.get(step)
+        if parents is None:
+            parents = by_step[step] = _parents(result, step)
         if parents.get(a) == owner(b) or parents.get(b) == owner(a):
             continue
         if b in riding.get((step, a), ()) or a in riding.get((step, b), ()):
@@ -85,7 +94,7 @@ def near_pairs(result: Any, report: SolutionReport) -> list[tuple[int, float | N
     return out
 
 
-def along_motion(result: Any, report: SolutionReport) -> list[tuple[int, float, str, str, float]]:
+def along_motion(result: Any, report: SolutionReport) -> list[Near]:
     """(step, waypoint, a, b, distance) at every interior waypoint and segment midpoint of the
     motion s_step -> s_step+1 for each pair the verification found colliding somewhere along
     it (a `collision` failure at a waypoint or midpoint), filtered like `near_pairs`. Why the
@@ -103,10 +112,7 @@ def along_motion(result: Any, report: SolutionReport) -> list[tuple[int, float, 
         a, b = f.bodies
         out += [(f.step, float(k), a, b, f.distance) for k in range(1, n - 1)]
         out += [(f.step, k + 0.5, a, b, f.distance) for k in range(n - 1)]
-    if not out:
-        return []
-    spread = SolutionReport(False, near=out, riding=getattr(report, "riding", {}))
-    return near_pairs(result, spread)
+    return near_pairs(result, out, report.riding)
 
 
 def _known(factors) -> set:
@@ -191,7 +197,7 @@ def pair_factors(compiled: Any, result: Result, report: SolutionReport, graph: A
     def build(step: int, a: str, b: str, wp: float | None):
         return pair_factor(compiled.factory, plan.states, step, _body(a), _body(b), settings.margin, wp)
 
-    for step, wp, a, b, d in near_pairs(result, report) + (along_motion(result, report) if spread else []):
+    for step, wp, a, b, d in near_pairs(result, report.near, report.riding) + (along_motion(result, report) if spread else []):
         pair = frozenset((a, b))
         if wp is not None and static.get((step, pair)) is None:
             f = build(step, a, b, wp)

@@ -101,7 +101,7 @@ class ReachabilityCosts:
     def reach_keyframe_starts(self, graph: GraphNLP, states) -> None:
         """R-LGP: a keyframe of a robot with a reachability graph starts with its base placed
         next to what it acts on at the step, the free ring points of the plan's shortest drive
-        (`compile.placement.restart_guesses` with `across_rings`: `plan_bases`; the solver's odd
+        (`compile.placement.restart_guesses` with `reach.drives.plan_bases`; the solver's odd
         restarts take the innermost ring's point nearest the previous base), instead of at the
         robot's home like every other keyframe.
 
@@ -132,8 +132,9 @@ class ReachabilityCosts:
         if self.options.algorithm != "rlgp" or not self.reach:
             return
         from gnppdsl.compile.placement import restart_guesses
+        from gnppdsl.reach.drives import plan_bases
 
-        placed = restart_guesses(self.compiled.factory, graph.variables, states, across_rings=True)
+        placed = restart_guesses(self.compiled.factory, graph.variables, states, plan=plan_bases)
         for v, q in placed.items():
             if not v.waypoints and v.args and v.args[0] in self.reach:
                 graph.initial_guess[v] = np.asarray(q, float)
@@ -178,6 +179,7 @@ class ReachabilityCosts:
         s.reach_edge_checks = s.reach_edges_removed = s.reach_enhanced_nodes = s.reach_restored = 0
         s.reach_contact_ends = 0
         for graph, _ in self.reach.values():
+            graph.keep_checks()               # its edge checks' outcomes, for later runs (`reach.persist`)
             g = graph.stats
             s.reach_samples += graph.num_samples
             s.reach_restored += g.restored

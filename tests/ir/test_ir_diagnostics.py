@@ -364,7 +364,9 @@ def test_unknown_template(tmp_path):
 
 def test_unknown_qualified_template(tmp_path):
     d = check(tmp_path, "rule r(o: block) : always => d.sme(pose(o), pose(o))\n")
-    at(d, 15, 32, "unknown-template")
+    x = at(d, 15, 32, "unknown-template")
+    # the suggestion is written as the call must be: with its module, not the bare name
+    assert x.hint == "did you mean 'd.same'?", x.hint
 
 
 def test_unknown_module_in_call(tmp_path):

@@ -169,7 +169,7 @@ def _table():
 def test_travel_map_drives_around_the_table():
     """`TravelMap`: the straight line where it clears the table's footprint grown by the base's
     radius, else around its (cut) corners; never shorter than the straight line."""
-    from gnppdsl.compile.placement import TravelMap
+    from gnppdsl.reach.drives import TravelMap
 
     r = 0.45
     m = TravelMap([_table()], r, (-2.2, -1.6), (2.2, 1.6))
@@ -182,12 +182,13 @@ def test_travel_map_drives_around_the_table():
 
 
 def test_plan_bases_take_the_side_the_whole_plan_favours():
-    """R-LGP's keyframe bases (`plan_bases`, `restart_guesses(across_rings=True)`): a pick at the
+    """R-LGP's keyframe bases (`plan_bases`, `restart_guesses(plan=plan_bases)`): a pick at the
     west end of the table followed by a put north of it is made from the west side, on the way
     north, not from the south (the ring point nearest the home base, which the greedy choice
     took: sort_random_pr2 instance 4's second pick from the west, then the NLP slid north); the
     plan's drive is the shortest of the choices."""
-    from gnppdsl.compile.placement import TravelMap, base_next_to, plan_bases
+    from gnppdsl.compile.placement import base_next_to
+    from gnppdsl.reach.drives import TravelMap, plan_bases
 
     r, lo, hi = 0.45, (-2.2, -1.6), (2.2, 1.9)
     home = [0.0, -1.15, 1.5708, 0.1]
@@ -215,13 +216,14 @@ def _pr2_plan_starts(instance: int):
     red1 to its tray, then blue1 to its tray."""
     from gnppdsl.compile.placement import restart_guesses
     from gnppdsl.compile.semantics import parse_plan, plan_states
+    from gnppdsl.reach.drives import plan_bases
 
     c = load_and_compile([str(MOBILE / "sort_random_pr2.pntc")], instance=instance)
     plan = ("pick(red1, mm, center); drop(red1, mm, red_tray); pick(blue1, mm, center); "
             "drop(blue1, mm, blue_tray)")
     states = plan_states(c.task, parse_plan(c.task, plan))
     return c, {v.step: q for v, q in restart_guesses(c.factory, c.factory.variables(states), states,
-                                                     across_rings=True).items() if v.kind == "q"}
+                                                     plan=plan_bases).items() if v.kind == "q"}
 
 
 def test_rlgp_second_pick_of_sort_random_pr2_4_from_the_south():
