@@ -185,23 +185,27 @@ class Lifter:
         return out
 
     # ---- internals ---------------------------------------------------------------------
+    def _rename_fact(self, v: int, x: int, perm: dict[str, str]) -> tuple[int, int] | None:
+        """π(pred(args) = value) = (pred(π(args)) = π(value)) as (variable, value index); None
+        when the renamed variable is not in the task or the renamed value not in its domain."""
+        pred, args = self._parsed[v]
+        w = self._index.get(var_name(pred, tuple(perm.get(a, a) for a in args)))
+        if w is None:
+            return None
+        value = self.task.variables[v].values[x]
+        values = self.task.variables[w].values
+        target = perm.get(value, value)
+        if target not in values:
+            return None
+        return w, values.index(target)
+
     def _rename_conflict(self, seq: Conflict, perm: dict[str, str]) -> Conflict | None:
-        """π(seq) fact by fact (`pred(args) = value` -> `pred(π(args)) = π(value)`); None when a
-        renamed variable or value is not in the task."""
+        """π(seq) fact by fact (`_rename_fact`); None when a renamed fact is not in the task."""
         out = []
         for p in seq:
-            facts = []
-            for v, x in p.facts:
-                pred, args = self._parsed[v]
-                w = self._index.get(var_name(pred, tuple(perm.get(a, a) for a in args)))
-                if w is None:
-                    return None
-                value = self.task.variables[v].values[x]
-                values = self.task.variables[w].values
-                target = perm.get(value, value)
-                if target not in values:
-                    return None
-                facts.append((w, values.index(target)))
+            facts = [self._rename_fact(v, x, perm) for v, x in p.facts]
+            if None in facts:
+                return None
             out.append(PartialState.of(facts))
         return tuple(out)
 
@@ -247,20 +251,15 @@ class Lifter:
         return None
 
     def _rename_state(self, state: tuple[int, ...], perm: dict[str, str]) -> tuple[int, ...]:
-        """π(s): the value of variable pred(π(args)) is π(value of pred(args)); variables whose
-        preimage is not in the task, or whose renamed value is not in its domain, keep theirs
-        (the factory's generators, not this state, define the instance)."""
-        inverse = {v: k for k, v in perm.items()}
+        """π(s): the value of variable pred(π(args)) is π(value of pred(args)) (`_rename_fact`,
+        perm a bijection); variables whose preimage is not in the task, or whose renamed value is
+        not in its domain, keep theirs (the factory's generators, not this state, define the
+        instance)."""
         out = list(state)
-        for w, (pred, args) in enumerate(self._parsed):
-            pre = self._index.get(var_name(pred, tuple(inverse.get(a, a) for a in args)))
-            if pre is None:
-                continue
-            value = self.task.variables[pre].values[state[pre]]
-            values = self.task.variables[w].values
-            target = perm.get(value, value)
-            if target in values:
-                out[w] = values.index(target)
+        for v, x in enumerate(state):
+            image = self._rename_fact(v, x, perm)
+            if image is not None:
+                out[image[0]] = image[1]
         return tuple(out)
 
 

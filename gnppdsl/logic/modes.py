@@ -205,7 +205,7 @@ class AutoPlanner:
                                              f"time limit of {time_limit:g} s reached for task {self.task.name}")
                 limit = turn if left is None else min(turn, left)
                 if planner is self.fd:
-                    self.fd.lower_bound = self.sequential._lowest   # clingo's proofs: nothing shorter
+                    self.fd.lower_bound = self.sequential.no_plan_below   # clingo's proofs, the bound
                     # the first search gets the turn; the bounded searches for shorter plans after
                     # it are bounded by their CPU budget (TIGHTEN_CPU) and the time left
                     res = self.fd.shortest_plan(max_horizon, limit, tighten_limit=left)

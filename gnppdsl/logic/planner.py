@@ -28,12 +28,21 @@ from gnppdsl import interrupt
 from gnppdsl.errors import SolveFailure
 from gnppdsl.logic.encoding import conflict_program, encode_task, lifted_conflict_program
 from gnppdsl.logic.learned import LearnedConstraints
+from gnppdsl.logic.lower_bound import plan_length_bound
 from gnppdsl.logic.validate import State, find_sequence, plan_cost
 
 DEFAULT_MAX_HORIZON = 64
 # clasp's "trendy" configuration: on the Lab example with 71 learned conflicts it proved the
 # horizons 0..15 empty in 1.4 s against 9 s with the default ("auto"); towers are unaffected.
 DEFAULT_CLINGO_ARGS = ("--configuration=trendy",)
+# clasp conflicts a horizon below the plan-length bound may cost before the search jumps to the
+# bound (`lower_bound.plan_length_bound`). Why not jump at once: the horizons a propagation or a
+# few conflicts refute cost milliseconds, and the nogoods they leave steer clingo to the same
+# first plan as without the bound (work2, field3, lab1/3/4_paper: at most 24 conflicts each
+# below N0 = the bound); jumping at once gave other shortest plans there and a different solve
+# (work2 8.4 -> 11.1 s CPU, field3 11.4 -> 13.4 s). The expensive ones are skipped (lab5_paper:
+# 165 at horizon 6 .. 9556 at 11; work4: 1899 and 27389 at 6 and 7).
+CHEAP_CONFLICTS = 100
 
 
 class Status(enum.Enum):
@@ -103,13 +112,17 @@ class IncrementalPlanner(LearnedConstraints):
     Parameters: `max_horizon` bounds the search when a call does not give its own bound;
     `clingo_args` are passed to `clingo.Control` (e.g. `["--configuration=handy"]`);
     `invariants` adds h^2 mutexes to the encoding (sound; faster proofs of "no plan");
+    `lower_bound`: `lower_bound.plan_length_bound(task)` is a length no plan of the task is
+    shorter than, so the horizons below it need no proof: they are solved while each costs at
+    most CHEAP_CONFLICTS clasp conflicts, and the first that costs more jumps to the bound
+    (shortest plans stay shortest; a task whose goal the bound finds unreachable has no plan);
     `statistics` sums clingo's own search time into `stats.clingo_solve_time` (reading clingo's
     statistics costs about a millisecond per solve call, so it is off by default).
     """
 
     def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON,
                  clingo_args: Sequence[str] = DEFAULT_CLINGO_ARGS, invariants: bool = True,
-                 statistics: bool = False) -> None:
+                 statistics: bool = False, lower_bound: bool = True) -> None:
         self.task = task
         self.max_horizon = max_horizon
         self._statistics = statistics
@@ -126,8 +139,22 @@ class IncrementalPlanner(LearnedConstraints):
         self._lowest = 0             # smallest horizon that may still hold a plan
         self.conflict_budget: int | None = None   # clasp conflicts left for solve calls (None: no limit)
         self._ground([("base", ()), ("check", (0,))])
+        self._bound = 0              # no plan is shorter (`lower_bound`); horizons below it are
+                                     # solved only while cheap (CHEAP_CONFLICTS)
+        if lower_bound:
+            # after the encoding: its h^2 mutexes are cached (`mutex.h2_matrix`), the bound reuses them
+            bound = plan_length_bound(task)
+            if bound is None:            # a goal value unreachable: no plan at any horizon
+                self._lowest = bound = max_horizon + 1
+            self._bound = bound
 
     # ---- grounding ---------------------------------------------------------------------
+    @property
+    def no_plan_below(self) -> int:
+        """A length no plan under the current constraints is shorter than: the horizons proven
+        empty so far, or the plan-length bound (`lower_bound`)."""
+        return max(self._lowest, self._bound)
+
     @property
     def horizon(self) -> int:
         """The largest grounded step."""
@@ -217,17 +244,19 @@ class IncrementalPlanner(LearnedConstraints):
                 self._externals[sym] = val
         self._ctl.configuration.solve.opt_mode = "opt" if minimize else "ignore"
 
-    def _solve(self, deadline: float | None, models: int = 1):
+    def _solve(self, deadline: float | None, models: int = 1, limit: int | None = None):
         """One solve call; returns (status, list of model symbols (best last), proven optimal).
 
         Runs asynchronously and polls, so the time limit and Ctrl-C interrupt the search; the
         handle's context manager always closes the solve, leaving the control usable. With a
         `conflict_budget` (set by `shortest_plan`) clasp stops after that many conflicts
         (`--solve-limit`, a TIMEOUT like the time limit) and the budget shrinks by the
-        conflicts the call used: a limit that does not depend on the machine's load.
+        conflicts the call used: a limit that does not depend on the machine's load. `limit`:
+        clasp conflicts for this call alone (a TIMEOUT too when reached).
         """
         budget = self.conflict_budget
-        self._ctl.configuration.solve.solve_limit = "umax,umax" if budget is None else str(max(1, budget))
+        cap = budget if limit is None else limit if budget is None else min(budget, limit)
+        self._ctl.configuration.solve.solve_limit = "umax,umax" if cap is None else str(max(1, cap))
         found: list = []
         proven = [False]
 
@@ -254,9 +283,10 @@ class IncrementalPlanner(LearnedConstraints):
             self.stats.solve_time += time.perf_counter() - t0
         if self._statistics:
             self.stats.clingo_solve_time += self._ctl.statistics["summary"]["times"]["solve"]
-        if budget is not None:
+        if cap is not None:
             used = int(self._ctl.statistics["solving"]["solvers"]["conflicts"])
-            self.conflict_budget = budget - used
+            if budget is not None:
+                self.conflict_budget = budget - used
             self.stats.conflicts += used
         if result.interrupted or not (result.satisfiable or result.unsatisfiable):
             return Status.TIMEOUT, found, False
@@ -305,7 +335,14 @@ class IncrementalPlanner(LearnedConstraints):
             if not self._extend_to(h, deadline):
                 return self._timeout(h, start, time_limit), []
             self._set_externals(query=h, cut=True, idle=False, minimize=minimize_cost)
-            status, found, proven = self._solve(deadline, 1 if minimize_cost else models)
+            cheap = h < self._bound          # no plan here (the bound): a proof only while it is cheap
+            status, found, proven = self._solve(deadline, 1 if minimize_cost else models,
+                                                limit=CHEAP_CONFLICTS if cheap else None)
+            if status is Status.TIMEOUT and cheap and not (
+                    deadline is not None and time.perf_counter() >= deadline
+                    or self.conflict_budget is not None and self.conflict_budget <= 0):
+                self._lowest = h = self._bound
+                continue
             if status is Status.FOUND:
                 plans = [self._plan_from(m, shortest=True, optimal=False) for m in found]
                 best = plans.pop()  # the last model (the optimum when minimising)

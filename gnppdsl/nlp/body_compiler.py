@@ -59,6 +59,9 @@ class CompiledBody:
     # building it; read from `source` when it is a Function
     name: str = ""
     slot_dims: tuple[int, ...] = ()
+    # with stop-gradient symbols: (x.., p, o) -> (h, the fast stop-gradient values) in one
+    # graph, the values' inputs sharing the rows' kinematic chains (`_open_rows`' shared form)
+    joint: ca.Function | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         f = self.source
@@ -174,22 +177,39 @@ def _symbols(cb: CompiledBody) -> tuple[list, Any]:
     return slots, ca.SX.sym("p", cb.n_params)
 
 
-def _open_rows(cb: CompiledBody, slots: list, p) -> tuple[Any, Any, Any]:
+def _open_rows(cb: CompiledBody, slots: list, p, shared: bool = False) -> tuple[Any, Any, Any]:
     """(h, o, o's value) on SX symbols: with stop-gradient symbols, h is the open function of
     a fresh o (differentiate with o held constant, then substitute o's value); else o is
-    empty."""
+    empty. `shared`: h and o's value from one call of `CompiledBody.joint`, so that the
+    queries' inputs are the very nodes of h's kinematic chains (what `_closed(fuse=True)`
+    needs); else from two calls (two copies of the chains)."""
     if cb.open_function is None:
         return cb.function(*slots, p), ca.SX(0, 1), ca.SX(0, 1)
     O = ca.SX.sym("o", cb.open_function.size1_in(len(slots) + 1))
+    if shared and cb.joint is not None:
+        h, Ov = cb.joint(*slots, p, O)
+        return h, O, Ov
     return cb.open_function(*slots, p, O), O, cb.stops(*slots, p)
 
 
-def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -> ca.Function:
+def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None,
+            fuse: bool = False) -> ca.Function:
     """Function inputs -> D with the stop-gradient symbols O replaced by their values Ov (both
     functions of `inputs`). Why an MX wrapper around two SX Functions instead of
     `ca.substitute`: substituting into a Panda Hessian re-evaluates its whole SX graph (0.5 s of
     lab1's assembly); the wrapper costs two call nodes. `native` (a `jit.KernelCache.native`)
-    may replace the pure SX part, the derivative itself, by compiled code."""
+    may replace the pure SX part, the derivative itself, by compiled code.
+
+    `fuse` (Jacobians without compiled kernels): one SX Function, O substituted by Ov, where
+    Ov's inputs are nodes of D's own graph (`_open_rows(shared=True)`, a representative's one
+    builder). Why: the wrapper's stop Function ran the kinematic chains a second time for the
+    queries' inputs; fused, reverse AD's forward sweep (which reuses the rows' nodes) feeds
+    the queries too. Measured on `bench_komo.py`'s keyframe NLP templates (casadi's virtual
+    machine, per call): panda clear_gripper 19.6 -> 13.1 us (k=2 form), 34.1 -> 18.7 us
+    (grasp form), self_clear 9.4 -> 7.4 us; the same values (0 difference); build +2-6 ms
+    per template (the substitution)."""
+    if fuse and native is None and O.numel():
+        return ca.Function(name, inputs, [ca.substitute(D, O, Ov)])
     native = native or (lambda f: f)
     if O.numel() == 0:
         return native(ca.Function(name, inputs, [D]))
@@ -200,20 +220,22 @@ def _closed(name: str, inputs: list, O, Ov, D, native: Callable | None = None) -
 
 
 def _with_queries(fname: str, slots: list, p, out, O, Ov: Callable[[], Any], fast) -> tuple:
-    """(f, open_f, stops, evaluate) of a body whose rows `out` read the distance queries'
+    """(f, open_f, stops, evaluate, joint) of a body whose rows `out` read the distance queries'
     values through the symbols O: a builder of f, the rows with the queries' differentiable
     callbacks `Ov()` substituted (built on first use: `CompiledBody.function`), the open form
-    (x.., p, o), the queries' fast twins `fast` alone, and one graph with the fast twins
-    substituted (the queries' inputs share the kinematic chains with the model). Shared by a
+    (x.., p, o), the queries' fast twins `fast` alone, one graph with the fast twins
+    substituted (the queries' inputs share the kinematic chains with the model), and the open
+    rows with the fast twins as a second output of one graph (`CompiledBody.joint`). Shared by a
     freshly lowered body and one loaded from the store, so their graphs are equal."""
     open_f = ca.Function(fname + "_open", [*slots, p, O], [out])
     # the stop-gradient values are only ever evaluated: the fast twins
     stops = ca.Function(fname + "_stops", [*slots, p], [fast])
     evaluate = ca.Function(fname + "_eval", [*slots, p], [ca.substitute(out, O, fast)])
+    joint = ca.Function(fname + "_joint", [*slots, p, O], [out, fast])
 
     def f() -> ca.Function:
         return ca.Function(fname, [*slots, p], [ca.substitute(out, O, Ov())])
-    return f, open_f, stops, evaluate
+    return f, open_f, stops, evaluate, joint
 
 
 def sx_jacobian(out, X, others: list) -> Any:
@@ -248,8 +270,9 @@ def direct_jacobian(cb: CompiledBody, native: Callable | None = None) -> ca.Func
     grouped assembly; used for bodies without repeated constraints)."""
     slots, p = _symbols(cb)
     X = ca.vertcat(*slots)
-    out, O, Ov = _open_rows(cb, slots, p)
-    return _closed(cb.name + "_jac", [*slots, p], O, Ov, sx_jacobian(out, X, [p, O]), native)
+    out, O, Ov = _open_rows(cb, slots, p, shared=native is None)
+    return _closed(cb.name + "_jac", [*slots, p], O, Ov, sx_jacobian(out, X, [p, O]), native,
+                   fuse=True)
 
 
 def direct_hessian(cb: CompiledBody, native: Callable | None = None) -> ca.Function:
@@ -340,7 +363,9 @@ class BodyCompiler:
             else:
                 D = sx_jacobian(h, X, [p, O])
             ins = [*pts, *slots, p, lam] if hessian else [*pts, *slots, p]
-            fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D, self._native)
+            # (one builder: the queries' inputs are nodes of the rows' chains, `_closed`)
+            fn = _closed("rep_hess" if hessian else "rep_jac", ins, O, Ov, D, self._native,
+                         fuse=not hessian)
         self._reps[key] = fn
         return fn
 
@@ -551,10 +576,11 @@ class BodyCompiler:
             fast.append((g.witness_fast(a, b, planar) if hasattr(g, "witness_fast") else cbf)(x))
         if lo != A.numel():
             raise ValueError("stored distance queries do not match the geometry's")
-        f, open_f, stops, evaluate = _with_queries(
+        f, open_f, stops, evaluate, joint = _with_queries(
             fname, slots, p, out, O, lambda: ca.vertcat(*[cbf(x) for cbf, x in queries]),
             ca.vertcat(*fast))
-        return CompiledBody(f, *meta, open_f, stops, evaluate, fname, tuple(s.dim for s in sigs))
+        return CompiledBody(f, *meta, open_f, stops, evaluate, fname, tuple(s.dim for s in sigs),
+                            joint)
 
     def _lower(self, name: str, body: tuple, sigs: tuple[SlotSignature, ...], n_params: int,
                prims: set, mx: bool) -> tuple[CompiledBody, dict | None]:
@@ -572,16 +598,16 @@ class BodyCompiler:
             kinds += ["eq" if c.op == "==" else "ineq"] * h.numel()
         out = ca.vertcat(*rows) if rows else S(0, 1)
         fname = _fname(name)
-        open_f = stops = evaluate = None
+        open_f = stops = evaluate = joint = None
         if builder.stops:
             O, Ov = (ca.vertcat(*t) for t in zip(*builder.stops))
-            f, open_f, stops, evaluate = _with_queries(fname, slots, p, out, O, lambda: Ov,
-                                                       ca.vertcat(*builder.fast_stops))
+            f, open_f, stops, evaluate, joint = _with_queries(fname, slots, p, out, O, lambda: Ov,
+                                                              ca.vertcat(*builder.fast_stops))
         else:
             f = ca.Function(fname, [*slots, p], [out])
         groups = row_groups(body, sigs, [h.numel() for h in rows]) if not mx else ()
         cb = CompiledBody(f, tuple(kinds), n_params, "MX" if mx else "SX", frozenset(prims),
-                          groups, open_f, stops, evaluate, fname, tuple(s.dim for s in sigs))
+                          groups, open_f, stops, evaluate, fname, tuple(s.dim for s in sigs), joint)
         stored = None
         if not mx and self.store is not None:
             try:

@@ -66,6 +66,11 @@ class SolverOptions:
     near_start_below: float = 1e-3  # a first start whose rows all hold within this is run by
                                    # ipopt with a small bound push (`FeasibilitySolver._near`);
                                    # 0 turns it off
+    gauss_newton_steps: int = 8    # such a near start (first runs with an iteration monitor,
+                                   # no free unit quaternion) first takes up to this many
+                                   # Levenberg-Marquardt steps on the rows; when they make every
+                                   # row hold, that point is the run's answer and ipopt does not
+                                   # run (`FeasibilitySolver._projected`); 0 turns them off
     iteration_budget: int = 0      # ipopt iterations of one `solve` over all its runs (first
                                    # runs, polishes, exact-Hessian fallbacks); 0: none. Once it
                                    # is spent no run starts and a run with an iteration monitor

@@ -244,3 +244,34 @@ def test_elimination_replays_each_candidate_once_from_its_dropped_step(monkeypat
             assert out == expected
             compared += 1
     assert compared >= 20 and new < 0.75 * old, (new, old)
+
+
+def test_a_bounded_search_that_ran_out_is_not_repeated_at_the_same_bound():
+    """`_tighten`: after a bounded search timed out at bound b, the next call whose plan has
+    length b + 1 does not search at b again (the base searched again, a second full budget);
+    a plan of another length is still tightened."""
+    require_fd()
+    task = tower_task(3)
+    plans = all_plans(task, 6)
+    four = min(plans, key=len)
+    six = next(p for p in plans if len(p) == 6)
+    assert len(four) == 4
+    planner = FastDownwardPlanner(task, max_horizon=10, eliminate=False)
+    bounded = []
+
+    def run(horizon, limit, cpu_limit=None):
+        if cpu_limit is None:
+            planner.fd_cpu += 0.1
+            return Status.FOUND, list(answer[0])
+        bounded.append(horizon)
+        planner.fd_cpu += cpu_limit
+        return Status.TIMEOUT, []
+    planner._run = run
+    answer = [four]
+    planner.shortest_plan()
+    assert bounded == [3] and planner.tightened[-1] == (4, "time limit", 0)
+    planner.shortest_plan()
+    assert bounded == [3] and planner.tightened[-1] == (4, "skipped", 0)
+    answer[0] = six
+    planner.shortest_plan()
+    assert bounded == [3, 5]
