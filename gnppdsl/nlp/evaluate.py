@@ -398,7 +398,7 @@ class _Program:
     """One factor instance: its variables' leaves in the shared table, the constants and steps
     it needs (children before parents), its rows, and its rows at its last few inputs."""
 
-    __slots__ = ("vars", "consts", "steps", "rows", "eq_at", "ineq_at", "recent", "table", "far")
+    __slots__ = ("vars", "consts", "steps", "rows", "eq_at", "ineq_at", "recent", "table")
 
     def __init__(self, template: _Template, factor: FactorInstance, table: _Table):
         loc = template.table
@@ -428,68 +428,6 @@ class _Program:
         self.ineq_at = tuple(i for i, (eq, _) in enumerate(self.rows) if not eq)
         self.table = table
         self.recent: dict[tuple, list[np.ndarray]] = {}
-        self.far: tuple | None = None     # `_far_rows` + bounded rows, made on the first bounded call
-
-
-def _far_rows(prog: _Program) -> tuple:
-    """One byte per row of the program, 1 for its rows `c - sdist(a, b)` (`sdist(...) >= c`
-    with a constant c) whose sdist and row nodes nothing else in the factor reads: such a row
-    is at most c - (a lower bound of the distance), so it can be bounded before the distance
-    is computed (`_values_of_rows` with `below`)."""
-    t = prog.table
-    candidates = []
-    for i, (eq, h) in enumerate(prog.rows):
-        if eq or t.prefix[h] != ("sub",) or h in t.const or len(t.kids[h]) != 2:
-            continue
-        c, s = t.kids[h]
-        if c not in t.const or t.const[c].shape != (1,) or s in t.const or t.prefix[s][0] != "sdist":
-            continue
-        candidates.append((i, h, c, s))
-    if not candidates:
-        return b""
-    users: dict[int, int] = {}
-    for nid in prog.steps:
-        for k in t.kids[nid]:
-            users[k] = users.get(k, 0) + 1
-    for _, h in prog.rows:
-        users[h] = users.get(h, 0) + 1
-    far = bytearray(len(prog.rows))
-    for i, h, c, s in candidates:
-        if users.get(h) == 1 and users.get(s) == 1:
-            far[i] = 1
-    return bytes(far) if any(far) else b""
-
-
-_RADII: dict[tuple, float] = {}
-"""(geometry token, body name, link) -> radius about the body's frame origin of a ball holding
-its shapes: |c| + |h| of the body's local box (coal's local AABBs, exact for boxes, cylinders
-and convex hulls), inf when the geometry has no such box."""
-
-
-_PENDING = object()
-"""Marks a deferred node in a call's memo while `_bounded_rows` runs a factor's steps."""
-_RECENT_BOUNDED = 2
-"""Bounded results remembered per factor (besides `_RECENT` exact ones): a check repeated at
-the same point (a phase's keyframes by the next phase, the whole graph's `known_solution`)."""
-
-_RSUM: dict[tuple, float] = {}
-"""(geometry token, prefix of an sdist node) -> the sum of its two bodies' `_radius`."""
-
-
-def _radius(g: Any, token: int, body: Body) -> float:
-    key = (token, body.name, body.link)
-    r = _RADII.get(key)
-    if r is None:
-        try:
-            c, h = g.body(body).local_box()
-            r = float(np.linalg.norm(c) + np.linalg.norm(h))
-        except Exception:          # a geometry without boxes: never bounded
-            r = math.inf
-        if len(_RADII) > 10_000:
-            _RADII.clear()
-            _RSUM.clear()
-        r = _RADII[key] = r if r == r else math.inf
-    return r
 
 
 _TABLE = _Table()
@@ -600,25 +538,12 @@ def _start_call(geometry: Any) -> tuple[dict, int | None]:
     return {_GEO: geometry}, _geometry_token(geometry)
 
 
-BOUND_SLACK = 1e-6
-"""How far below its threshold (0 for a violation, the floor for a margin) a distance row's
-bound must be before the distance is skipped: covers coal's GJK/EPA tolerance (1e-9)."""
-
-
 _ERRORS = (ValueError, IndexError, TypeError, KeyError, AttributeError, ZeroDivisionError)
 
 
 def _values_of_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: dict,
-                    token: int | None, below: float | None = None) -> tuple[_Program, list[np.ndarray]]:
-    """(program, h of every constraint) of a factor; `m` is the memo of the current call.
-
-    `below` (the broadphase): a row `c - sdist(a, b)` (`_far_rows`) whose bound c - L, with L
-    = |p_a - p_b| - r_a - r_b a lower bound of the distance (`_radius`: balls about the two
-    frames' origins), is below `below` gets that bound as its value, and the distance is not
-    computed. Such a row's true value is <= the bound (< below); every other row is exact. A
-    result with a bounded row is not remembered (`recent` holds exact rows only)."""
-    if below is not None and token:
-        return _bounded_rows(factor, values, m, token, below)
+                    token: int | None) -> tuple[_Program, list[np.ndarray]]:
+    """(program, h of every constraint) of a factor; `m` is the memo of the current call."""
     try:
         prog = _program(factor)
         key: list = [token]
@@ -660,105 +585,6 @@ def _values_of_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m
         if len(prog.recent) >= _RECENT:
             del prog.recent[next(iter(prog.recent))]     # oldest first
         prog.recent[k] = hs
-    return prog, hs
-
-
-def _bounded_rows(factor: FactorInstance, values: Mapping[VarInstance, Any], m: dict,
-                  token: int, below: float) -> tuple[_Program, list[np.ndarray]]:
-    """`_values_of_rows` with the broadphase `below` (see there). Rows with a bounded row are
-    remembered apart from the exact ones (`_Program.far`'s last entry), with their `below`:
-    they answer a later call at the same input whose `below` is not lower (its bounds are
-    then below that threshold too)."""
-    try:
-        prog = _program(factor)
-        key: list = [token]
-        for nid, var in prog.vars:
-            x = m.get(nid)
-            if x is None:
-                try:
-                    raw = values[var]
-                except KeyError:
-                    raise EvaluationError(f"no value for variable {var}") from None
-                x = m[nid] = np.asarray(raw, float).reshape(-1)
-            key.append(x.tobytes())
-        k = tuple(key)
-        hs = prog.recent.get(k)
-        if hs is not None:
-            return prog, hs
-        if prog.far is None:
-            prog.far = (_far_rows(prog), {})
-        far, held = prog.far
-        if not far:
-            return _values_of_rows(factor, values, m, token)
-        hit = held.get(k)
-        if hit is not None and hit[0] <= below:
-            return prog, hit[1]
-        const = prog.table.const
-        for nid in prog.consts:
-            if nid not in m:
-                m[nid] = const[nid]
-        ops, args = prog.table.op, prog.table.kids
-        # the far rows' distance and row nodes are skipped below (marked pending: nothing else
-        # of this factor reads them), unless another factor of this call computed them
-        rows = prog.rows
-        pending = []
-        for i, flag in enumerate(far):
-            if flag:
-                h = rows[i][1]
-                for x in (args[h][1], h):
-                    if x not in m:
-                        pending.append(x)
-        for x in pending:
-            m[x] = _PENDING
-        for nid in prog.steps:
-            if nid not in m:
-                ks = args[nid]
-                if len(ks) == 2:
-                    m[nid] = _vec(ops[nid](m[ks[0]], m[ks[1]]))
-                elif len(ks) == 1:
-                    m[nid] = _vec(ops[nid](m[ks[0]]))
-                else:
-                    m[nid] = _vec(ops[nid](*[m[k] for k in ks]))
-        for x in pending:
-            del m[x]
-        geometry = m[_GEO]
-        hs = []
-        bounded = False
-        prefix = prog.table.prefix
-        for i, (_, h) in enumerate(rows):
-            x = m.get(h)
-            if x is None:
-                if far[i]:
-                    cn, s = args[h]
-                    _, ka, kb = args[s]
-                    pair = prefix[s]                   # ("sdist", name a, link a, name b, link b)
-                    r = _RSUM.get((token, pair))
-                    if r is None:
-                        r = _RSUM[(token, pair)] = _radius(geometry, token, Body(pair[1], pair[2])) \
-                            + _radius(geometry, token, Body(pair[3], pair[4]))
-                    d = m[ka][:3] - m[kb][:3]
-                    bound = const[cn][0] - math.sqrt(float(d @ d)) + r
-                    if bound < below:        # NaN: never
-                        hs.append(np.array([bound]))
-                        bounded = True
-                        continue
-                    if s not in m:
-                        ks = args[s]
-                        m[s] = _vec(ops[s](m[ks[0]], m[ks[1]], m[ks[2]]))
-                    ks = args[h]
-                    x = m[h] = _vec(ops[h](m[ks[0]], m[ks[1]]))
-                else:
-                    x = m[h]
-            hs.append(x)
-    except EvaluationError:
-        raise
-    except _ERRORS as err:
-        raise EvaluationError(f"{getattr(factor, 'label', factor)}: {type(err).__name__}: {err}") \
-            from err
-    store = held if bounded else prog.recent
-    if len(store) >= (_RECENT_BOUNDED if bounded else _RECENT):
-        del store[next(iter(store))]     # oldest first
-    store[k] = (below, hs) if bounded else hs
     return prog, hs
 
 
@@ -811,31 +637,22 @@ def max_violation(factors: Iterable[FactorInstance], values: Mapping[VarInstance
                   geometry: Geometry | None = None) -> tuple[float, FactorInstance | None]:
     """(largest violation over all factors, the factor attaining it; None if no factor).
 
-    One memo for the whole call: a node shared by several factors is evaluated once. With the
-    broadphase (`_values_of_rows`' `below`): a distance row bounded below -BOUND_SLACK holds,
-    as it does computed, so the result is the same number as without it."""
+    One memo for the whole call: a node shared by several factors is evaluated once."""
     m, token = _start_call(geometry)
     best, arg = 0.0, None
     for f in factors:
-        v = _worst(*_values_of_rows(f, values, m, token, -BOUND_SLACK))
+        v = _worst(*_values_of_rows(f, values, m, token))
         if arg is None or v > best:
             best, arg = v, f
     return best, arg
 
 
 def factor_margins(factors: Iterable[FactorInstance], values: Mapping[VarInstance, Any],
-                   geometry: Geometry | None = None, floor: float | None = None) -> list[float]:
+                   geometry: Geometry | None = None) -> list[float]:
     """Per factor, its largest row value, signed: h for inequality rows (h <= 0 holds, so a
     negative margin says how far the factor is from becoming active), |h| for equality rows;
     NaN counts as infinite. Why signed: `gnppdsl.solve.screening` keeps only the collision
     factors within a distance of becoming active, which `max_violation` (0 for every factor
-    that holds) cannot tell apart. One memo for the whole call, as `max_violation`.
-
-    `floor`: margins above it are exact; one at or below it may be returned as any value
-    between the true margin and the floor (a distance row bounded by the broadphase,
-    `_values_of_rows`' `below`, without computing the distance). Why: screening asks only
-    which collision factors are within SCREEN_DISTANCE of active, and stack_32's motions put
-    an arm against 32 blocks most of which are decimetres to metres away."""
+    that holds) cannot tell apart. One memo for the whole call, as `max_violation`."""
     m, token = _start_call(geometry)
-    below = None if floor is None else floor - BOUND_SLACK
-    return [_margin(*_values_of_rows(f, values, m, token, below)) for f in factors]
+    return [_margin(*_values_of_rows(f, values, m, token)) for f in factors]

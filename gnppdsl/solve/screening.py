@@ -281,17 +281,13 @@ class CollisionScreen(CheckMemory):
 
     def _margins(self, instances: list, point: dict) -> list[float] | None:
         """`factor_margins` of the factors at the point (numpy), counted in reuse_time; None when
-        a primitive cannot be evaluated there. Exact above -SCREEN_DISTANCE, the one threshold
-        below 0 that a margin is compared with here (`near`; `depth` and the check against the
-        tolerance compare with thresholds above it); a margin at or below it may be a bound
-        between the true margin and -SCREEN_DISTANCE (the evaluator's broadphase skips far
-        distances: stack_32, 19.3 s of a 150 s profile were these margins)."""
+        a primitive cannot be evaluated there."""
         from gnppdsl.nlp.evaluate import factor_margins
 
         run = self.run
         t0 = time.perf_counter()
         try:
-            return factor_margins(instances, point, run.compiled.geometry, floor=-SCREEN_DISTANCE)
+            return factor_margins(instances, point, run.compiled.geometry)
         except Exception:
             return None
         finally:
