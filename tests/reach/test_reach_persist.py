@@ -10,30 +10,16 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from reach_checks import LEFT_BOX, lab_scene_with_wall  # noqa: E402
+from reach_checks import LEFT_BOX  # noqa: E402
 
 from gnppdsl.reach import graph as graph_module  # noqa: E402
 from gnppdsl.reach.graph import ReachabilityGraph  # noqa: E402
 from gnppdsl.reach.settings import ReachSettings  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[2]
 SETTINGS = ReachSettings("left_arm", workspace=LEFT_BOX, samples=24, neighbours=5, seed=4)
 A, B = (-0.75, 0.25, 0.7), (-0.15, 0.25, 0.7)          # the two sides of the scene's wall
-
-
-@pytest.fixture(scope="module")
-def scene():
-    return lab_scene_with_wall(ROOT)
-
-
-@pytest.fixture
-def store(tmp_path, monkeypatch):
-    d = tmp_path / "reach"
-    monkeypatch.setenv("GNPP_REACH_CACHE", str(d))
-    return d
 
 
 def _snapshot(g: ReachabilityGraph) -> tuple:
