@@ -9,8 +9,9 @@ Modules (imported on demand, so `import gnppdsl.reach` stays cheap):
   Gaussian enhancement; `path`, `travel_cost`, `query`, `query_configs`)
 - `integration`: `build_from_problem`, `operator_targets`, `heuristic_pair_costs`,
   `warmstart_waypoints` (what the solve loop calls; Alg. 1's heuristicCost and getWaypoints)
-- `drives`: `TravelMap` (a base's drives among the tables' grown footprints), `plan_bases` (the
-  keyframe bases of a plan's least drive: R-LGP's keyframe starts)
+- `drives`: `TravelMap` (a base's drives among the tables' grown footprints, `route`), `plan_bases`
+  (the keyframe bases of a plan's least drive: R-LGP's keyframe starts), `drive_waypoints` (a
+  trajectory start along the base's shortest drive, where a graph path is a detour)
 
 Typical use by the solve loop (R-LGP, `algorithm = rlgp`):
 
