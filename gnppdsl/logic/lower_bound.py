@@ -44,16 +44,16 @@ def _edges(task: SASTask) -> dict[int, list[tuple[int, frozenset[int], int]]]:
     preconditions, effect conditions and the state facts its derived preconditions imply (a
     value mutex with one of them never holds when the operator applies), restricted to the
     precondition or condition on the variable itself when there is one."""
-    from gnppdsl.logic.mutex import _axioms_by_var, _derived_consequences, h2_matrix
+    from gnppdsl.logic.mutex import axioms_by_var, derived_consequences, h2_matrix
 
     inv, _, R = h2_matrix(task)
     index = {f: i for i, f in enumerate(inv)}
     reached = R.diagonal()
-    by_var = _axioms_by_var(task)
+    by_var = axioms_by_var(task)
     out: dict[int, list[tuple[int, frozenset[int], int]]] = {}
     for o, op in enumerate(task.operators):
         derived = tuple(sorted(f for f in op.pre if task.variables[f[0]].is_derived))
-        implied, excluded = _derived_consequences(task, derived, by_var)
+        implied, excluded = derived_consequences(task, derived, by_var)
         pre = {(v, x) for v, x in op.pre if not task.variables[v].is_derived} | implied
         if len({v for v, _ in pre}) != len(pre) or pre & excluded:
             continue                                      # contradictory: never applicable
