@@ -86,6 +86,61 @@ def _request():
 
 
 _REQ = None
+_RETRY = None
+
+# coal reports a failed signed-distance query (EPA giving up on shapes that touch face to face,
+# measured on two aligned boxes touching within 1e-12) as the distance -DBL_MAX with a NaN normal
+# and NaN witness points; the value is finite, so it passed every isfinite check and reached
+# ipopt as NaN rows (field5 seed 0: "solver fault: avoid(station_n, o3)"). Anything this large
+# is such a failure: no scene is a light-year across.
+_FAILED = 1e300
+
+
+def _good(d: float, n, w1, w2) -> bool:
+    """coal's answer is usable: a finite distance that is not the failure value, a finite
+    nonzero normal and finite witness points (NaN fails every comparison, so `>=`)."""
+    return (abs(d) < _FAILED and float(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) >= 1e-24
+            and math.isfinite(w1[0] + w1[1] + w1[2] + w2[0] + w2[1] + w2[2]))
+
+
+def _retry_request():
+    import coal
+    global _RETRY
+    if _RETRY is None:
+        _RETRY = _request()
+        _RETRY.gjk_variant = coal.GJKVariant.NesterovAcceleration
+    return _RETRY
+
+
+def robust_query(sa, Ta, sb, Tb, first=None):
+    """(d, normal, witness on a, witness on b) of coal's signed-distance query of two placed
+    shapes, as plain float tuples (normal not normalised), or None when coal fails every way.
+
+    When the plain query fails (`_good`), it is asked again with the shapes swapped (normal
+    and witnesses mapped back), then with Nesterov-accelerated GJK: a different path through
+    GJK and EPA on the same shapes, which on the failing configurations measured answers where
+    the first did not. `first`: the (d, DistanceResult) of a plain query already made."""
+    import coal
+    global _REQ
+    if _REQ is None:
+        _REQ = _request()
+    if first is None:
+        res = coal.DistanceResult()
+        first = (coal.distance(sa, Ta, sb, Tb, _REQ, res), res)
+    attempts = (first, (sb, Tb, sa, Ta, _REQ), (sa, Ta, sb, Tb, _retry_request()))
+    for k, att in enumerate(attempts):
+        if k == 0:
+            d, res = att
+        else:
+            res = coal.DistanceResult()
+            d = coal.distance(*att[:4], att[4], res)
+        n = tuple(res.normal.tolist())
+        w1, w2 = tuple(res.getNearestPoint1().tolist()), tuple(res.getNearestPoint2().tolist())
+        if k == 1:                                   # swapped: B's normal points from B to A
+            n, w1, w2 = (-n[0], -n[1], -n[2]), w2, w1
+        if math.isfinite(d) and _good(d, n, w1, w2):
+            return float(d), n, w1, w2
+    return None
 
 
 def _place(T, R, p, M, identity: bool) -> None:
@@ -120,9 +175,17 @@ def witness(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB, with_shapes:
         for sb, Mb, Tb in zip(body_b.shapes, body_b.placements, Tbs):
             res = coal.DistanceResult()
             d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
-            if best is None or d < best[0]:
-                best = (d, np.array(res.normal), np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2()),
+            if not (abs(d) < _FAILED) or not _good(d, res.normal, res.getNearestPoint1(), res.getNearestPoint2()):
+                q = robust_query(sa, Ta, sb, Tb, (d, res))
+                # coal failed every way (it does so on shapes touching): touching, the caller's
+                # degenerate-query fallback (NaN normal) takes the centre direction
+                d, n, w1, w2 = q if q is not None else (0.0, (math.nan,) * 3, (math.nan,) * 3, (math.nan,) * 3)
+                cand = (d, np.array(n), np.array(w1), np.array(w2), (sa, Ma, sb, Mb))
+            else:
+                cand = (d, np.array(res.normal), np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2()),
                         (sa, Ma, sb, Mb))
+            if best is None or cand[0] < best[0]:
+                best = cand
     if best is None:
         raise ValueError(f"body {body_a.name} or {body_b.name} has no collision shape")
     return best[:4] if not with_shapes else best
@@ -141,7 +204,12 @@ def signed_distance(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB) -> f
     for sa, Ma, ia in zip(body_a.shapes, body_a.placements, body_a.identity()):
         Ta = _placed(RA, pA, Ma, ia)
         for sb, Tb in zip(body_b.shapes, Tbs):
-            best = min(best, coal.distance(sa, Ta, sb, Tb, _REQ, coal.DistanceResult()))
+            res = coal.DistanceResult()
+            d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
+            if not (abs(d) < _FAILED):           # coal's failure value (`_FAILED`): ask again
+                q = robust_query(sa, Ta, sb, Tb, (d, res))
+                d = q[0] if q is not None else 0.0       # failing every way: touching
+            best = min(best, d)
     if best == math.inf:
         raise ValueError(f"body {body_a.name} or {body_b.name} has no collision shape")
     return float(best)
@@ -264,15 +332,23 @@ class WitnessCallback(ca.Callback):
         d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
         n = res.normal
         nn = math.sqrt(n.dot(n))                # == np.linalg.norm(n) (the same dot product)
-        if not math.isfinite(d) or nn < 1e-12:
-            return None
+        w1, w2 = res.getNearestPoint1().tolist(), res.getNearestPoint2().tolist()
+        n0, n1, n2 = n.tolist()
+        # (`not >=`: a NaN normal fails it too; coal's failure value, `_FAILED`, is finite)
+        if not (abs(d) < _FAILED and nn >= 1e-12) or not math.isfinite(sum(w1) + sum(w2)):
+            q = robust_query(sa, Ta, sb, Tb, (d, res))
+            if q is None:
+                return None                     # the general path's degenerate-query fallback
+            d, (n0, n1, n2), w1, w2 = q
+            nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            if not nn >= 1e-12:
+                return None
         self.calls += 1
         xl = x.tolist()
         RA_ = [xl[0:9:3], xl[1:9:3], xl[2:9:3]]     # rows of the column-major 3x3
         RB_ = [xl[12:21:3], xl[13:21:3], xl[14:21:3]]
-        n0, n1, n2 = n.tolist()
         return feature_list(sa, pla, sb, plb, RA_, xl[9:12], RB_, xl[21:24], d, (n0 / nn, n1 / nn, n2 / nn),
-                            res.getNearestPoint1().tolist(), res.getNearestPoint2().tolist(), self.planar)
+                            w1, w2, self.planar)
 
     def _model_general(self, x: np.ndarray) -> np.ndarray:
         RA = x[0:9].reshape(3, 3, order="F")
@@ -286,7 +362,7 @@ class WitnessCallback(ca.Callback):
         self.calls += 1
         d, n, wa, wb, (sa, Ma, sb, Mb) = witness(self.body_a, RA, pA, self.body_b, RB, pB, with_shapes=True)
         nn = np.linalg.norm(n)
-        if not np.isfinite(d) or nn < 1e-12:
+        if not np.isfinite(d) or not nn >= 1e-12 or not np.all(np.isfinite(wa)) or not np.all(np.isfinite(wb)):
             # Touching exactly (or a degenerate query): fall back to the centre direction.
             c = pB - pA
             n = c / np.linalg.norm(c) if np.linalg.norm(c) > 1e-12 else np.array([0.0, 0.0, 1.0])

@@ -164,6 +164,7 @@ class NativeWitness:
         self.lib.gnpp_add_pair.argtypes = [i, pd, i, i, pd, i, i]
         self.lib.gnpp_model.argtypes = [i, pd, pd]
         self.lib.gnpp_queries.restype = ctypes.c_longlong
+        self.lib.gnpp_fail_next.argtypes = [i]
         self.external = ca.external("gnpp_witness", str(path))
         self._shapes: dict[int, tuple[Any, int]] = {}    # id(coal shape) -> (shape, native id)
         self._pairs: dict[tuple, tuple[int, Any]] = {}
@@ -253,6 +254,11 @@ class NativeWitness:
 
     def forget(self) -> None:
         self.lib.gnpp_forget()
+
+    def fail_next(self, k: int) -> None:
+        """Test hook: the next k plain coal queries report coal's failure value (-DBL_MAX with
+        NaN normal and witness points), so that tests reach the retries (`distance.robust_query`)."""
+        self.lib.gnpp_fail_next(int(k))
 
     def queries(self) -> int:
         """Queries computed through casadi so far (memo hits not counted)."""

@@ -18,6 +18,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -95,6 +96,7 @@ struct Pair {
 std::vector<Shape> g_shapes;
 std::vector<Pair> g_pairs;
 long long g_queries = 0;   // coal queries answered by gnpp_witness (not from the memo)
+int g_fail_next = 0;       // test hook (gnpp_fail_next): plain queries to report as coal's failure
 
 coal::DistanceRequest& request() {
   static coal::DistanceRequest req;
@@ -106,6 +108,30 @@ coal::DistanceRequest& request() {
     init = true;
   }
   return req;
+}
+
+// distance.robust_query's second request: Nesterov-accelerated GJK
+coal::DistanceRequest& retry_request() {
+  static coal::DistanceRequest req;
+  static bool init = false;
+  if (!init) {
+    req.enable_signed_distance = true;
+    req.gjk_tolerance = 1e-9;
+    req.epa_tolerance = 1e-9;
+    req.gjk_variant = coal::GJKVariant::NesterovAcceleration;
+    init = true;
+  }
+  return req;
+}
+
+// distance._good: coal's failure value (EPA giving up on shapes touching face to face) is
+// -DBL_MAX with a NaN normal and NaN witness points
+const double FAILED = 1e300;
+bool good(double d, const coal::DistanceResult& res) {
+  const coal::Vec3s& n = res.normal;
+  const coal::Vec3s& w1 = res.nearest_points[0];
+  const coal::Vec3s& w2 = res.nearest_points[1];
+  return std::fabs(d) < FAILED && n.squaredNorm() >= 1e-24 && std::isfinite(w1.sum() + w2.sum());
 }
 
 // features.shape_feature: kind 0 none, 1 face (2 dirs), 2 edge (1 dir), 3 vertex, 4 sphere
@@ -316,12 +342,35 @@ void witness_model(const Pair& P, const double* x, double* out) {
   coal::Transform3s Ta, Tb;
   place(Ta, RA, pA, P.Ma);
   place(Tb, RB, pB, P.Mb);
+  const coal::ShapeBase* ga = g_shapes[P.a].geom.get();
+  const coal::ShapeBase* gb = g_shapes[P.b].geom.get();
   coal::DistanceResult res;
-  double d = coal::distance(g_shapes[P.a].geom.get(), Ta, g_shapes[P.b].geom.get(), Tb, request(), res);
+  double d = coal::distance(ga, Ta, gb, Tb, request(), res);
+  if (g_fail_next > 0) {   // test hook: coal's failure as measured (see good)
+    --g_fail_next;
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    d = -std::numeric_limits<double>::max();
+    res.normal.setConstant(nan);
+    res.nearest_points[0].setConstant(nan);
+    res.nearest_points[1].setConstant(nan);
+  }
+  bool swapped = false;
+  if (!good(d, res)) {   // distance.robust_query: the shapes swapped, then Nesterov's GJK
+    coal::DistanceResult r2;
+    double d2 = coal::distance(gb, Tb, ga, Ta, request(), r2);
+    if (good(d2, r2)) {
+      d = d2, res = r2, swapped = true;
+    } else {
+      coal::DistanceResult r3;
+      double d3 = coal::distance(ga, Ta, gb, Tb, retry_request(), r3);
+      if (good(d3, r3)) d = d3, res = r3;
+    }
+  }
   V3 n = {res.normal(0), res.normal(1), res.normal(2)};
+  if (swapped) n = {-n[0], -n[1], -n[2]};
   double nn = std::sqrt(dot(n, n));
   V3 wa, wb;
-  if (!std::isfinite(d) || nn < 1e-12) {   // touching exactly: the centre direction
+  if (!good(d, res) || !(nn >= 1e-12)) {   // touching exactly: the centre direction
     V3 c = sub(pB, pA);
     double nc = norm(c);
     n = nc > 1e-12 ? V3{c[0] / nc, c[1] / nc, c[2] / nc} : V3{0.0, 0.0, 1.0};
@@ -329,8 +378,8 @@ void witness_model(const Pair& P, const double* x, double* out) {
     d = 0.0;
   } else {
     n = {n[0] / nn, n[1] / nn, n[2] / nn};
-    const coal::Vec3s& w1 = res.nearest_points[0];
-    const coal::Vec3s& w2 = res.nearest_points[1];
+    const coal::Vec3s& w1 = res.nearest_points[swapped ? 1 : 0];
+    const coal::Vec3s& w2 = res.nearest_points[swapped ? 0 : 1];
     wa = {w1(0), w1(1), w1(2)};
     wb = {w2(0), w2(1), w2(2)};
   }
@@ -416,6 +465,10 @@ int gnpp_add_pair(int a, const double* Ma, int ida, int b, const double* Mb, int
 void gnpp_forget(void) {
   for (Pair& p : g_pairs) p.filled = p.next = 0;
 }
+
+// Test hook: the next k plain coal queries report coal's failure value (-DBL_MAX, NaN normal
+// and witness points), so that tests reach the retries, which coal answers for real.
+void gnpp_fail_next(int k) { g_fail_next = k; }
 
 // Number of queries gnpp_witness computed (memo hits not counted): tests of the memo.
 long long gnpp_queries(void) { return g_queries; }
