@@ -17,6 +17,7 @@ Nothing here solves anything; the nlp layer turns each `body` into a casadi Func
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 from gnppdsl.compile.sas import PartialState
 from gnppdsl.ir.expr import Constraint
@@ -36,9 +37,13 @@ class VarInstance:
     lower: tuple[float, ...] | None = field(default=None, compare=False)   # per component
     upper: tuple[float, ...] | None = field(default=None, compare=False)
 
-    @property
+    @cached_property
     def key(self) -> str:
-        """The variable kind k without time (`pose(b1)`): semantic label for matching."""
+        """The variable kind k without time (`pose(b1)`): semantic label for matching.
+        Computed once per instance (kept in its `__dict__`, outside the fields, so equality,
+        hashing and `replace` are unchanged). Why: the semantic graphs of the database's
+        lookups read it for every variable of every checked graph (lab3_paper, 3 seeds:
+        55854 calls, 0.57 s of a 19 s profile)."""
         return f"{self.kind}({', '.join(self.args)})" if self.args else self.kind
 
     @property
@@ -64,9 +69,11 @@ class FactorInstance:
     variables: tuple[VarInstance, ...]      # Slot(j) in `body` refers to variables[j]
     body: tuple[Constraint, ...]            # resolved (stage 2) constraints, see ir.expr
 
-    @property
+    @cached_property
     def label(self) -> str:
-        """Human-readable: `held(o=b1, r=g) -> planar.grasp @3`."""
+        """Human-readable: `held(o=b1, r=g) -> planar.grasp @3`. Computed once per instance
+        (as `VarInstance.key`): the semantic graphs sort every factor by it (field4, 2 seeds:
+        12728 calls, 0.43 s of a 31 s profile)."""
         b = ", ".join(f"{k}={v}" for k, v in self.bindings)
         return f"{self.rule}({b}) -> {self.template} @{self.step}"
 

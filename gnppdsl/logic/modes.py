@@ -67,6 +67,11 @@ SAFETY_FACTOR = 4.0
 # costs at most about 3x the faster planner's time (FD restarts each turn). FD's searches on
 # the Lab and scalability problems take 0.02-0.5 s, well inside the first turn.
 FD_SLICE = 4.0
+# clasp conflicts clingo gets, when the conflicts raised the plan-length bound, before Fast
+# Downward is tried (`AutoPlanner._probe`): lab4_paper's call at the raised bound 9 answers
+# within 0.08 s (kept: the same plans as before); lab5_paper's at 16 needs 2.6 s CPU (about
+# 30k conflicts), where Fast Downward's plan reaches the bound in 0.2 s
+PROBE_CONFLICTS = 5000
 
 
 class AutoPlanner:
@@ -82,12 +87,16 @@ class AutoPlanner:
         self.max_horizon = max_horizon
         self.switch_after = switch_after
         self.switch_conflicts = switch_conflicts   # None: the CPU budget alone (SWITCH_AFTER)
-        self.sequential = IncrementalPlanner(task, max_horizon=max_horizon)
+        # the bound raised by conflicts decides the Fast Downward probe (`_probe`) and is Fast
+        # Downward's lower bound; clingo's horizons keep starting where they did (jumping to it
+        # changed lab4_paper's plan of 9 steps: other nogoods)
+        self.sequential = IncrementalPlanner(task, max_horizon=max_horizon, raise_bound=False)
         self.fd: FastDownwardPlanner | None = None
         self.switched_at: int | None = None    # number of shortest_plan calls before the switch
         self.fd_slice = FD_SLICE
         self.turns: list[tuple[str, float]] = []   # (planner, turn length) after the switch
         self._calls = 0
+        self._probed = 0         # the last raised bound Fast Downward was tried at (`_probe`)
         self._fd_available = downward_binary() is not None
 
     # the planner interface ----------------------------------------------------------------
@@ -150,6 +159,9 @@ class AutoPlanner:
             return self.sequential.shortest_plan(max_horizon, time_limit, minimize_cost)
         if self.fd is not None:
             return self._alternate(max_horizon, time_limit)
+        probe = self._probe(max_horizon, time_limit)
+        if probe is not None:
+            return probe
         start, cpu0 = time.perf_counter(), time.process_time()
         # the budget is CPU seconds (the same switch on a loaded machine as on an idle one), capped
         # in wall time at WALL_FACTOR x the budget and at half the call's time limit, so that Fast
@@ -217,6 +229,41 @@ class AutoPlanner:
                     res.message += f" ({name})"
                     return res
             turn *= 2
+
+    def _probe(self, max_horizon: int | None, time_limit: float | None) -> PlanResult | None:
+        """Fast Downward first when the conflicts raised the plan-length bound (`IncrementalPlanner.
+        raised_by_conflicts`, e.g. a goal pad covered by an obstacle): its plan, if proven
+        shortest (it reaches the bound, or a bounded search proves it), is returned and the
+        search stays with Fast Downward (the switch); otherwise the call goes on with clingo as
+        before. Once per bound value. Why: clingo has to find the plan at a horizon it never
+        solved, lab5_paper's third call (bound 12 -> 16 after `{parent(b4) = pad_r,
+        parent(o2) = table, not moved(o2)}`): 2.6 s CPU of clingo at horizon 16 (2 s spent,
+        then the switch), where Fast Downward's plan, after action elimination, has 16 steps."""
+        bound = self.sequential.raised_by_conflicts
+        if bound is None or bound <= self._probed or self.max_horizon < bound:
+            return None
+        self._probed = bound
+        start = time.perf_counter()
+        # clingo first, for PROBE_CONFLICTS clasp conflicts: where it answers at once the plans
+        # (and the solve's path) stay the sequential planner's (lab4_paper: 0.08 s for its 9 steps)
+        self.sequential.conflict_budget = PROBE_CONFLICTS
+        try:
+            res = self.sequential.shortest_plan(max_horizon, None if time_limit is None else time_limit / 4)
+        finally:
+            self.sequential.conflict_budget = None
+        if res.status is not Status.TIMEOUT:
+            res.time = time.perf_counter() - start
+            return res
+        self._switch()
+        self.fd.lower_bound = bound
+        limit = self.fd_slice if time_limit is None else min(self.fd_slice, time_limit / 2)
+        res = self.fd.shortest_plan(max_horizon, limit, tighten_limit=limit)
+        if res.found and res.plan.shortest:
+            res.time = time.perf_counter() - start
+            res.message += f" (Fast Downward: the conflicts raised the plan-length bound to {bound})"
+            return res
+        self.fd, self.switched_at = None, None      # clingo goes on; a later switch rebuilds Fast Downward
+        return None
 
     def _switch(self) -> None:
         fd = FastDownwardPlanner(self.task, max_horizon=self.max_horizon)

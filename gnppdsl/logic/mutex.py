@@ -23,24 +23,31 @@ import numpy as np
 from gnppdsl.compile.sas import Fact, SASTask
 
 
-def _axioms_by_var(task: SASTask) -> dict[int, list]:
+def axioms_by_var(task: SASTask) -> dict[int, list]:
+    """The task's axioms grouped by the derived variable they define: {variable index: [Axiom]}.
+
+    Built once by callers that ask `derived_consequences` about many conjunctions (the h^2
+    fixpoint below, `lower_bound.plan_length_bound`)."""
     axioms: dict[int, list] = {}
     for ax in task.axioms:
         axioms.setdefault(ax.var, []).append(ax)
     return axioms
 
 
-def _derived_consequences(task: SASTask, facts, axioms: dict[int, list] | None = None) -> tuple[set[Fact], set[Fact]]:
+def derived_consequences(task: SASTask, facts, axioms: dict[int, list] | None = None) -> tuple[set[Fact], set[Fact]]:
     """State facts that a conjunction with derived tests implies true / implies false.
 
     Only the certain cases: `d = 1` with a single axiom implies its conditions; `d = 0` implies
     that each single-condition axiom's condition is false (recursively through derived
     conditions). E.g. `clear(x)` (:= not exists o . parent(o) = x) excludes every
     `parent(o) = x`, which lets h^2 see that two blocks never rest on one support.
-    `axioms`: `_axioms_by_var(task)`, built once by callers that ask for many operators.
+    `axioms`: `axioms_by_var(task)`, built once by callers that ask for many operators.
+    Returns (implied, excluded): state facts (variable, value) that every state satisfying `facts`
+    holds, and state facts that none of them holds; derived facts in `facts` are read, state
+    facts in it are ignored (the caller has them).
     """
     if axioms is None:
-        axioms = _axioms_by_var(task)
+        axioms = axioms_by_var(task)
     implied: set[Fact] = set()
     excluded: set[Fact] = set()
     seen: set[Fact] = set()
@@ -85,12 +92,12 @@ def _h2_matrix(task: SASTask):
     init = [index[(v, task.initial[v])] for v in state]
     R[np.ix_(init, init)] = True
     ops = []
-    by_var = _axioms_by_var(task)
+    by_var = axioms_by_var(task)
     consequences: dict[tuple, tuple[set[Fact], set[Fact]]] = {}   # operators share derived tests
     for op in task.operators:
         key = tuple(sorted(f for f in op.pre if task.variables[f[0]].is_derived))
         if key not in consequences:
-            consequences[key] = _derived_consequences(task, key, by_var)
+            consequences[key] = derived_consequences(task, key, by_var)
         implied, excluded = consequences[key]
         pre = sorted(set((v, x) for v, x in op.pre if not task.variables[v].is_derived) | implied)
         if len({v for v, _ in pre}) != len(pre) or set(pre) & excluded:

@@ -28,7 +28,7 @@ from gnppdsl import interrupt
 from gnppdsl.errors import SolveFailure
 from gnppdsl.logic.encoding import conflict_program, encode_task, lifted_conflict_program
 from gnppdsl.logic.learned import LearnedConstraints
-from gnppdsl.logic.lower_bound import plan_length_bound
+from gnppdsl.logic.lower_bound import LengthBound
 from gnppdsl.logic.validate import State, find_sequence, plan_cost
 
 DEFAULT_MAX_HORIZON = 64
@@ -122,7 +122,7 @@ class IncrementalPlanner(LearnedConstraints):
 
     def __init__(self, task: SASTask, max_horizon: int = DEFAULT_MAX_HORIZON,
                  clingo_args: Sequence[str] = DEFAULT_CLINGO_ARGS, invariants: bool = True,
-                 statistics: bool = False, lower_bound: bool = True) -> None:
+                 statistics: bool = False, lower_bound: bool = True, raise_bound: bool = True) -> None:
         self.task = task
         self.max_horizon = max_horizon
         self._statistics = statistics
@@ -141,19 +141,45 @@ class IncrementalPlanner(LearnedConstraints):
         self._ground([("base", ()), ("check", (0,))])
         self._bound = 0              # no plan is shorter (`lower_bound`); horizons below it are
                                      # solved only while cheap (CHEAP_CONFLICTS)
+        self._length: LengthBound | None = None   # the bound, raised by conflicts (`LengthBound.under`)
+        self._raised = 0             # ... its value under the conflicts so far
+        self.raise_bound = raise_bound   # the horizons start at the raised bound (else only reported)
         if lower_bound:
             # after the encoding: its h^2 mutexes are cached (`mutex.h2_matrix`), the bound reuses them
-            bound = plan_length_bound(task)
+            self._length = LengthBound(task)
+            bound = self._length.bound
             if bound is None:            # a goal value unreachable: no plan at any horizon
                 self._lowest = bound = max_horizon + 1
+                self._length = None
             self._bound = bound
 
     # ---- grounding ---------------------------------------------------------------------
     @property
     def no_plan_below(self) -> int:
         """A length no plan under the current constraints is shorter than: the horizons proven
-        empty so far, or the plan-length bound (`lower_bound`)."""
-        return max(self._lowest, self._bound)
+        empty so far, or the plan-length bound (`lower_bound`) raised by the conflicts."""
+        self._raise_bound()
+        return max(self._lowest, self._bound, self._raised)
+
+    @property
+    def raised_by_conflicts(self) -> int | None:
+        """The plan-length bound when the conflicts raised it above the task's own bound and
+        above every horizon proven empty (the next plan lies at a horizon the search has never
+        solved), else None."""
+        self._raise_bound()
+        if self._length is None or self._raised <= max(self._bound, self._lowest):
+            return None
+        return self._raised
+
+    def _raise_bound(self) -> None:
+        """The plan-length bound under the conflicts learned so far (`LengthBound.under`: e.g.
+        a goal pad covered by an obstacle adds the obstacle's pick and place)."""
+        if self._length is not None and self._length._seen < len(self.conflicts):
+            raised = self._length.under(self.conflicts)
+            if raised is not None:
+                self._raised = max(self._raised, raised)
+                if self.raise_bound:
+                    self._bound = max(self._bound, raised)
 
     @property
     def horizon(self) -> int:
@@ -327,6 +353,7 @@ class IncrementalPlanner(LearnedConstraints):
         start = time.perf_counter()
         deadline = self._deadline(time_limit)
         H = self.max_horizon if max_horizon is None else max_horizon
+        self._raise_bound()
         h = self._lowest
         while h <= H:
             if deadline is not None and time.perf_counter() >= deadline \
