@@ -108,3 +108,27 @@ def lab1_kernels(tmp_path_factory):
     if jit.find_compiler() is None:
         pytest.skip("no C compiler")
     return compile_lab1_kernels(tmp_path_factory.mktemp("lab1_kernels"))
+
+
+@pytest.fixture(scope="session")
+def native_library():
+    """The native distance twin (`geometry/native_witness.cpp`), built here when it is missing
+    and a compiler and coal's headers exist (about 6 s; a failed build is a failure), loaded
+    whatever the user's GNPP_NATIVE says (that switch only turns its use off). Skips without a
+    C++ compiler or coal's headers: the solver then uses the Python callback."""
+    from gnppdsl.geometry import native
+
+    path = native.library_path()
+    if path is None:
+        pytest.skip("no C++ compiler or no coal headers: the Python callback is used")
+    saved = os.environ.pop("GNPP_NATIVE", None)
+    try:
+        if not path.is_file():
+            native.build()
+        native._LOADED.pop("lib", None)
+        out = native.load(start_build=False)
+        assert out is not None, f"{path} was built but does not load"
+        yield out
+    finally:
+        if saved is not None:
+            os.environ["GNPP_NATIVE"] = saved

@@ -98,29 +98,24 @@ std::vector<Pair> g_pairs;
 long long g_queries = 0;   // coal queries answered by gnpp_witness (not from the memo)
 int g_fail_next = 0;       // test hook (gnpp_fail_next): plain queries to report as coal's failure
 
-coal::DistanceRequest& request() {
-  static coal::DistanceRequest req;
-  static bool init = false;
-  if (!init) {
-    req.enable_signed_distance = true;
-    req.gjk_tolerance = 1e-9;
-    req.epa_tolerance = 1e-9;
-    init = true;
-  }
+// coal's signed-distance request at the tolerances distance.py uses; `nesterov`: GJK with
+// Nesterov acceleration (distance.robust_query's second request)
+coal::DistanceRequest make_request(bool nesterov) {
+  coal::DistanceRequest req;
+  req.enable_signed_distance = true;
+  req.gjk_tolerance = 1e-9;
+  req.epa_tolerance = 1e-9;
+  if (nesterov) req.gjk_variant = coal::GJKVariant::NesterovAcceleration;
   return req;
 }
 
-// distance.robust_query's second request: Nesterov-accelerated GJK
+coal::DistanceRequest& request() {
+  static coal::DistanceRequest req = make_request(false);
+  return req;
+}
+
 coal::DistanceRequest& retry_request() {
-  static coal::DistanceRequest req;
-  static bool init = false;
-  if (!init) {
-    req.enable_signed_distance = true;
-    req.gjk_tolerance = 1e-9;
-    req.epa_tolerance = 1e-9;
-    req.gjk_variant = coal::GJKVariant::NesterovAcceleration;
-    init = true;
-  }
+  static coal::DistanceRequest req = make_request(true);
   return req;
 }
 

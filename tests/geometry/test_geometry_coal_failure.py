@@ -18,7 +18,6 @@ import numpy as np
 import pytest
 
 import coal
-from gnppdsl.geometry import native
 from gnppdsl.geometry.distance import ConvexBody, WitnessCallback, signed_distance, witness
 from gnppdsl.geometry.features import model_expression
 
@@ -124,15 +123,8 @@ def test_every_query_failing_still_gives_finite_rows(monkeypatch):
     assert signed_distance(a, RA, pA, b, RB, pB) == 0.0
 
 
-def test_native_twin_recovers_like_the_callback(monkeypatch):
-    path = native.library_path()
-    if path is None:
-        pytest.skip("no C++ compiler or no coal headers")
-    if not path.is_file():
-        native.build()          # a compiler and headers exist: a failed build is a failure
-        native._LOADED.pop("lib", None)
-    lib = native.load(start_build=False)
-    assert lib is not None, f"{path} exists but does not load (GNPP_NATIVE=0?)"
+def test_native_twin_recovers_like_the_callback(monkeypatch, native_library):
+    lib = native_library
     a, b = bodies()
     fn = lib.function("station_o3_failure", a, b, False)
     lib.forget()

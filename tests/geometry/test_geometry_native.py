@@ -13,7 +13,6 @@ exist; without them the test is skipped (the solver then uses the Python callbac
 """
 from __future__ import annotations
 
-import os
 
 import casadi as ca
 import numpy as np
@@ -30,26 +29,8 @@ I7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
 
 
 @pytest.fixture(scope="module")
-def lib():
-    # the twin is tested whatever the user's GNPP_NATIVE says (it only switches its use off)
-    saved = os.environ.pop("GNPP_NATIVE", None)
-    try:
-        yield _built_library()
-    finally:
-        if saved is not None:
-            os.environ["GNPP_NATIVE"] = saved
-
-
-def _built_library():
-    path = native.library_path()
-    if path is None:
-        pytest.skip("no C++ compiler or no coal headers: the Python callback is used")
-    if not path.is_file():
-        native.build()          # a compiler and headers exist: a failed build is a failure
-    native._LOADED.pop("lib", None)
-    out = native.load(start_build=False)
-    assert out is not None, f"{path} was built but does not load"
-    return out
+def lib(native_library):
+    return native_library
 
 
 def _obj(name, kind, size):

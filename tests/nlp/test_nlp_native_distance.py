@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 import coal  # noqa: E402,F401  (a dependency of the package: never a skip)
-from gnppdsl.geometry import native  # noqa: E402
 from gnppdsl.geometry.context import GeometryContext  # noqa: E402
 from gnppdsl.nlp.evaluate import max_violation  # noqa: E402
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions  # noqa: E402
@@ -18,15 +17,7 @@ from nlp_toys import coal_boxes  # noqa: E402
 
 
 @pytest.mark.parametrize("c", [0.5, 0.25])      # feasible (room for 4 boxes) and infeasible
-def test_native_and_python_distances_give_the_same_solve(c, monkeypatch):
-    path = native.library_path()
-    if path is None:
-        pytest.skip("no C++ compiler or no coal headers")
-    if not path.is_file():
-        native.build()          # a compiler and headers exist: a failed build is a failure
-        native._LOADED.pop("lib", None)
-    lib = native.load(start_build=False)
-    assert lib is not None, f"{path} exists but does not load (GNPP_NATIVE=0?)"
+def test_native_and_python_distances_give_the_same_solve(c, monkeypatch, native_library):
     results = []
     for use_native in (True, False):
         geo, fs = coal_boxes(4, c)
