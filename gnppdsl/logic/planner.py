@@ -174,7 +174,7 @@ class IncrementalPlanner(LearnedConstraints):
     def _raise_bound(self) -> None:
         """The plan-length bound under the conflicts learned so far (`LengthBound.under`: e.g.
         a goal pad covered by an obstacle adds the obstacle's pick and place)."""
-        if self._length is not None and self._length._seen < len(self.conflicts):
+        if self._length is not None:             # `under` looks at each conflict once
             raised = self._length.under(self.conflicts)
             if raised is not None:
                 self._raised = max(self._raised, raised)
