@@ -154,21 +154,29 @@ class RobotModel:
             raise UserError(f"robot {self.name} has no frame '{frame}'{hint}")
         return self.model.getFrameId(frame)
 
-    def planar_radius(self, link: str, c) -> float:
-        """The largest horizontal distance from the model's origin of a vertex of `link`'s
-        collision shapes at coordinates `c` (0 when it has none): a mobile base's footprint
-        radius when `c` puts the planar joint at the origin (`compile.placement.base_radius`)."""
+    def planar_points(self, link: str, c) -> np.ndarray:
+        """The horizontal (x, y) of every vertex of `link`'s collision shapes at coordinates `c`
+        (shape (n, 2), empty when it has none), in the model's frame: with the planar joint at the
+        origin and theta 0, a mobile base's outline in its own frame
+        (`compile.placement.base_footprint`)."""
         import pinocchio as pin
 
         data = self.model.createData()
         pin.framesForwardKinematics(self.model, data, self.to_pin_q(c))
         T = data.oMf[self.frame_id(link)].homogeneous
-        r = 0.0
+        out = [np.zeros((0, 2))]
         for g in self.links.get(link, []):
             M = T @ g.placement
             w = shape_vertices(g.shape) @ M[:3, :3].T + M[:3, 3]
-            r = max(r, float(np.hypot(w[:, 0], w[:, 1]).max()))
-        return r
+            out.append(w[:, :2])
+        return np.concatenate(out)
+
+    def planar_radius(self, link: str, c) -> float:
+        """The largest horizontal distance from the model's origin of a vertex of `link`'s
+        collision shapes at coordinates `c` (0 when it has none): a mobile base's footprint
+        radius when `c` puts the planar joint at the origin (`compile.placement.base_radius`)."""
+        P = self.planar_points(link, c)
+        return float(np.hypot(P[:, 0], P[:, 1]).max()) if len(P) else 0.0
 
     def home_coords(self, home: tuple[float, ...] = ()) -> np.ndarray:
         """The scene's `home`, else the SRDF "default" state, else pinocchio's neutral

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from gnppdsl.compile.placement import ANGLES, BASE_RADIUS, RADII, _facing, _ring_points, _yaw
+from gnppdsl.compile.placement import ANGLES, BASE_RADIUS, RADII, Footprint, _facing, _ring_points, _yaw
 
 RING_WEIGHT = 0.5               # plan_bases: drive (m) a ring point costs per metre beyond the innermost ring
 
@@ -226,18 +226,19 @@ def drive_waypoints(travel: TravelMap, qa, qb, n: int):
 
 def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstacles,
                lo: Sequence[float] | None = None, hi: Sequence[float] | None = None,
-               radius: float = BASE_RADIUS) -> list[list[float] | None]:
+               radius: float = BASE_RADIUS, footprint: Footprint | None = None) -> list[list[float] | None]:
     """One base per target (the robot's picks and puts in the plan's order), each a free point
-    of any ring around its target (`_ring_points`), together the least drive home -> first ->
-    ... -> last (`TravelMap`'s distances; a dynamic programme over the targets' ring points),
-    facing its target (`_facing`). None for a target without a free ring point (the chain
-    skips it)."""
+    of any ring around its target (`_ring_points`: the base's `footprint` facing the target
+    when given, else the disc of `radius`), together the least drive home -> first -> ... ->
+    last (`TravelMap`'s distances, for the disc; a dynamic programme over the targets' ring
+    points), facing its target (`_facing`). None for a target without a free ring point (the
+    chain skips it)."""
     import numpy as np
 
     travel = TravelMap(obstacles, radius, lo, hi)
     layers = []                           # (target index, points (n, 2), their ring penalties)
     for i, t in enumerate(targets):
-        pts = _ring_points(t, obstacles, lo, hi, radius)
+        pts = _ring_points(t, obstacles, lo, hi, radius, footprint=footprint)
         if pts:
             layers.append((i, np.asarray([(x, y) for x, y, _ in pts], float),
                            np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts])))
