@@ -39,7 +39,11 @@ from gnppdsl.compile.ground import var_name
 from gnppdsl.compile.sas import PartialState, SASTask
 from gnppdsl.compile.semantics import derive
 from gnppdsl.conflicts.mapping import to_partial_states
-from gnppdsl.conflicts.semantic import anonymous_graph, body_objects
+from gnppdsl.conflicts.semantic import SemanticGraph, anonymous_graph, body_objects, monomorphism
+
+LIFT_MATCH_BUDGET = 20_000
+"""Candidate pairs VF2 may test per renaming in `Lifter._check` (after the named image failed);
+then the renaming yields no instance (sound: fewer instances)."""
 
 Conflict = tuple[PartialState, ...]
 State = Sequence[int]
@@ -224,6 +228,16 @@ class Lifter:
 
     def _check(self, mapping: dict[str, str], window: list[tuple[int, ...]],
                shifted: list[FactorInstance], pattern) -> Conflict | None:
+        """The instance of M under the renaming `mapping` (its partial states), or None: the
+        renamed window's factors (`rule_factors`) must hold a set that is the same NLP as M.
+        First the factors π maps M's onto by name (rule, template, renamed bindings, step),
+        checked to be the same NLP as M under that very correspondence (`_same_nlp`: linear);
+        only if that fails, a label-preserving monomorphism of M into the renamed factors
+        (`semantic.monomorphism`: its necessary conditions first, then VF2 within
+        LIFT_MATCH_BUDGET tested pairs). Why: VF2 alone enumerated monomorphisms without end
+        when none exists (clutter_6 with its obstacles named in another order: one lifting of a
+        94-factor conflict ran for minutes, the solve hit its time limit); answering None when the
+        budget runs out is sound (lifting only learns fewer instances)."""
         perm = _complete(mapping)
         renamed = [self._rename_state(s, perm) for s in window]
         wanted = {(f.rule, tuple((k, perm.get(o, o)) for k, o in f.bindings), f.step) for f in shifted}
@@ -231,24 +245,37 @@ class Lifter:
         candidates = [f for f in self.factory.rule_factors(renamed, sorted(wanted)) if f.template in templates]
         if len(candidates) < len(shifted):
             return None
+        image = _named_image(shifted, candidates, perm)
+        if image is None or not _same_nlp(shifted, image, self.object_key):
+            image = self._matched_image(candidates, pattern)
+        if image is None:
+            return None
+        seq = to_partial_states(image)
+        start = min(f.step for f in image)
+        if start + len(seq) > len(renamed):
+            return None
+        derived = [derive(self.factory.task, st) for st in renamed[start:start + len(seq)]]
+        if not all(p.holds_in(derived[l]) for l, p in enumerate(seq)):
+            return None                              # cannot happen: generators hold where made
+        self._image = tuple(image)
+        return seq
+
+    def _matched_image(self, candidates: list[FactorInstance], pattern) -> list[FactorInstance] | None:
+        """The factors of the first label-preserving monomorphism of M's anonymous graph into the
+        candidates' (`semantic.monomorphism`, at most LIFT_MATCH_BUDGET tested pairs), if they
+        alone are the same NLP as M (no further incidences), else None."""
         from networkx.algorithms import isomorphism     # with the semantic graphs (`semantic._nx`)
 
         target = anonymous_graph(candidates, self.object_key)
-        gm = isomorphism.GraphMatcher(target, pattern, node_match=_same_label, edge_match=_same_slots)
-        for match in gm.subgraph_monomorphisms_iter():
-            image = [candidates[n[1]] for n in match if n[0] == "h"]
-            # the image alone must be the same NLP as M (no extra incidences among its vertices)
-            if not isomorphism.GraphMatcher(anonymous_graph(image, self.object_key), pattern,
-                                            node_match=_same_label, edge_match=_same_slots).is_isomorphic():
-                continue
-            seq = to_partial_states(image)
-            start = min(f.step for f in image)
-            derived = [derive(self.factory.task, st) for st in renamed]     # once, not per state
-            if not all(p.holds_in(derived[start + l]) for l, p in enumerate(seq)):
-                return None                              # cannot happen: generators hold where made
-            self._image = tuple(image)
-            return seq
-        return None
+        match = monomorphism(SemanticGraph.from_graph(pattern), SemanticGraph.from_graph(target),
+                             budget=LIFT_MATCH_BUDGET)
+        if match is None:
+            return None
+        image = [candidates[n[1]] for n in match if n[0] == "h"]
+        if not isomorphism.GraphMatcher(anonymous_graph(image, self.object_key), pattern,
+                                        node_match=_same_label, edge_match=_same_slots).is_isomorphic():
+            return None
+        return image
 
     def _rename_state(self, state: tuple[int, ...], perm: dict[str, str]) -> tuple[int, ...]:
         """π(s): the value of variable pred(π(args)) is π(value of pred(args)) (`_rename_fact`,
@@ -272,6 +299,48 @@ def _complete(mapping: dict[str, str]) -> dict[str, str]:
     perm.update(zip(free_targets, free_sources))
     return perm
 
+
+
+def _named_image(shifted: Sequence[FactorInstance], candidates: Sequence[FactorInstance],
+                 perm: dict[str, str]) -> list[FactorInstance] | None:
+    """For each factor of M the one candidate with its rule, template, renamed bindings and step
+    (in M's order); None when one has none or several, or two share one."""
+    by_key: dict[tuple, list[FactorInstance]] = {}
+    for g in candidates:
+        by_key.setdefault((g.rule, g.template, g.bindings, g.step), []).append(g)
+    image = []
+    for f in shifted:
+        found = by_key.get((f.rule, f.template, tuple((k, perm.get(o, o)) for k, o in f.bindings), f.step), ())
+        if len(found) != 1:
+            return None
+        image.append(found[0])
+    return image if len({id(g) for g in image}) == len(image) else None
+
+
+def _same_nlp(factors: Sequence[FactorInstance], image: Sequence[FactorInstance], object_key) -> bool:
+    """Are `image` and `factors` the same NLP under the correspondence factors[i] -> image[i] and,
+    slot by slot, their variables? Checked on the anonymous graphs (`semantic.anonymous_graph`):
+    that correspondence must be a bijection of the vertices that keeps every label and every
+    edge with its slots, with as many edges on both sides -- an isomorphism, so the same
+    verdict as one VF2 would find."""
+    a, b = anonymous_graph(factors, object_key), anonymous_graph(image, object_key)
+    if a.number_of_nodes() != b.number_of_nodes() or a.number_of_edges() != b.number_of_edges():
+        return False
+    node = {}
+    for i, (f, g) in enumerate(zip(factors, image)):
+        node[("h", i)] = ("h", i)
+        if len(f.variables) != len(g.variables):
+            return False
+        for v, w in zip(f.variables, g.variables):
+            x, y = ("x", v.key, v.step), ("x", w.key, w.step)
+            if node.setdefault(x, y) != y:
+                return False
+    if len(node) != a.number_of_nodes() or len(set(node.values())) != len(node):
+        return False
+    if any(a.nodes[n]["label"] != b.nodes[m]["label"] for n, m in node.items()):
+        return False
+    return all(b.has_edge(node[u], node[v]) and b.edges[node[u], node[v]]["slots"] == d["slots"]
+               for u, v, d in a.edges(data=True))
 
 
 def _same_label(a: dict, b: dict) -> bool:

@@ -23,6 +23,7 @@ assembly (`gnppdsl.nlp.feasibility`).
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any, Callable
 
@@ -31,6 +32,7 @@ import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.nlp.function_store import FunctionStore
+from gnppdsl.nlp.jit import FLAGS
 from gnppdsl.ir.expr import Obj
 from gnppdsl.nlp.geometry_protocol import GEOMETRY_PRIMITIVES, Body, Geometry
 from gnppdsl.nlp.lowering import (BodyError, BodyLowering, RowGroup, SlotSignature, constraint_rows,
@@ -311,6 +313,7 @@ class BodyCompiler:
         self._jacobians: dict[int, tuple[CompiledBody, ca.Function]] = {}
         self._reps: dict[tuple, ca.Function | None] = {}   # row-group representative derivatives
         self._names: dict[str, Any] = {}                    # object name -> structure key
+        self._keys: dict[int, tuple[CompiledBody, str]] = {}   # id(cb) -> (cb, its store key)
 
     def jacobian(self, cb: CompiledBody) -> ca.Function:
         """(x_0, ..., x_{m-1}, p) -> dh/dX (X the stacked slots), an SX Function built once per
@@ -319,7 +322,7 @@ class BodyCompiler:
         hit = self._jacobians.get(id(cb))
         if hit is not None and hit[0] is cb:
             return hit[1]
-        jf = self._grouped_derivative(cb, False) if _has_repeats(cb) else direct_jacobian(cb, self._native)
+        jf = self._grouped_derivative(cb, False) if _has_repeats(cb) else self._direct(cb, False)
         self._jacobians[id(cb)] = (cb, jf)
         return jf
 
@@ -332,9 +335,52 @@ class BodyCompiler:
         hit = self._hessians.get(id(cb))
         if hit is not None and hit[0] is cb:
             return hit[1]
-        hf = self._grouped_derivative(cb, True) if _has_repeats(cb) else direct_hessian(cb, self._native)
+        hf = self._grouped_derivative(cb, True) if _has_repeats(cb) else self._direct(cb, True)
         self._hessians[id(cb)] = (cb, hf)
         return hf
+
+    def _direct(self, cb: CompiledBody, hessian: bool) -> ca.Function:
+        """`direct_hessian` or `direct_jacobian` of cb; with compiled kernels and a store, its
+        kernel loaded by the key remembered for cb's stored body, without building the SX
+        derivative (`_stored_derivative`)."""
+        build = direct_hessian if hessian else direct_jacobian
+        k = self._keys.get(id(cb))
+        if k is None or k[0] is not cb or self.kernels is None or self.store is None:
+            return build(cb, self._native)
+        dkey = hashlib.sha256(f"{k[1]}|{'hessian' if hessian else 'jacobian'}|{FLAGS}".encode()).hexdigest()
+        fn = self._stored_derivative(cb, dkey, hessian)
+        if fn is not None:
+            return fn
+        used = []
+
+        def native(f: ca.Function) -> ca.Function:
+            g = self._native(f)
+            used.append(self.kernels.last)
+            return g
+        fn = build(cb, native)
+        if len(used) == 1 and used[0] is not None:
+            self.store.save(dkey, {"kernel": used[0][0], "expected": used[0][1]})
+        return fn
+
+    def _stored_derivative(self, cb: CompiledBody, dkey: str, hessian: bool) -> ca.Function | None:
+        """cb's direct derivative from its compiled kernel, found by the kernel key stored
+        under `dkey` (`KernelCache.cached`: the library checked against the values stored
+        with the key), the distance queries' values from cb's own `stops` as `_closed` feeds
+        them; None when either is missing. Why: building a large body's SX Hessian costs more
+        than everything else of its set-up, and when its kernel is compiled the SX graph is
+        only used for the kernel's key (field3: 53 per-body Hessians, 0.6-0.9 s CPU per
+        process; casadi's serialization of them, 118 MB, loads slower than they build)."""
+        rec = self.store.load(dkey)
+        g = self.kernels.cached(rec["kernel"], rec["expected"]) if rec is not None else None
+        if g is None:
+            return None
+        if cb.open_function is None:
+            return g
+        n = len(cb.slot_dims) + 1
+        if g.n_in() != n + 1 + hessian:
+            return None
+        m = [ca.MX.sym(f"a{i}", g.sparsity_in(i)) for i in range(g.n_in() - 1)]
+        return ca.Function(cb.name + ("_hess" if hessian else "_jac"), m, [g(*m, cb.stops(*m[:n]))])
 
     def _representative(self, group: RowGroup, hessian: bool) -> ca.Function | None:
         """Jacobian (points..., slots..., p) -> dh/d[points, slots] or Hessian (..., lam) ->
@@ -503,6 +549,8 @@ class BodyCompiler:
                     raise BodyError(f"{factor.label}: {err}") from None
             self._cache[key] = cb
             self.compiled += 1
+            if store_key is not None:
+                self._keys[id(cb)] = (cb, store_key)
         return cb, np.asarray(params, dtype=float)
 
     def _stored(self, name: str, sigs: tuple[SlotSignature, ...], n_params: int,

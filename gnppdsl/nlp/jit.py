@@ -142,9 +142,48 @@ class KernelCache:
         self._pending: dict[str, Path] = {}    # key -> library a worker is (or was) building
         self._workers: list[subprocess.Popen] = []    # started workers (their short-lived parents)
         self._skipped = 0          # kernels left to the VM for the deadline, not yet reported
+        self.last: tuple[str, bytes] | None = None    # see `native`
+        self._last: tuple[str, bytes] | None = None
 
     def native(self, f: ca.Function) -> ca.Function:
-        """A compiled Function with f's inputs, outputs and values, or f itself."""
+        """A compiled Function with f's inputs, outputs and values, or f itself. After a
+        compiled one, `last` is its (key, expected values at the probes): what `cached` needs
+        to load it again without f (`BodyCompiler`'s stored derivatives); else None."""
+        self.last = None
+        g = self._native(f)
+        if g is not f:
+            self.last = self._last
+        return g
+
+    def cached(self, key: str, expected: bytes) -> ca.Function | None:
+        """The compiled kernel of cache key `key` (`KernelCache.key`) without its SX Function:
+        the library in the cache, checked to give `expected` at the probes (as `native` checks a
+        library against the Function's own values), or None (absent, or other values). Why:
+        building a large derivative's SX graph only to compute its key cost a cold process
+        most of its set-up (field3: the per-body Hessians, 0.6-0.9 s CPU); the key and values
+        are remembered per body instead (`BodyCompiler._stored_derivative`)."""
+        hit = self._memo.get(key)
+        if hit is not None:
+            return hit
+        lib = self.directory / f"{key}.so"
+        if not lib.exists():
+            return None
+        try:
+            g = ca.external(kernel_symbol(key), str(lib))
+            if self.values(g, self.probes(g)) != expected:
+                return None
+        except Exception:          # a damaged library: `native` rebuilds it when it meets f
+            return None
+        self.loaded += 1
+        self._memo[key] = g
+        try:
+            os.utime(lib)
+        except OSError:
+            pass
+        return g
+
+    def _native(self, f: ca.Function) -> ca.Function:
+        self._last = None
         if self.cc is None or not f.is_a("SXFunction") or f.n_instructions() < self.min_instructions \
                 or f.has_free():
             return f
@@ -155,6 +194,7 @@ class KernelCache:
         if not np.isfinite(np.frombuffer(expected, dtype=float)).all():
             return f               # a NaN or inf at a probe would make the key ambiguous
         hit = self._memo.get(key)
+        self._last = (key, expected)
         if hit is not None:
             return hit
         lib = self.directory / f"{key}.so"

@@ -275,12 +275,10 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
 
     def __call__(self, g: GraphNLP) -> bool | FeasibilityResult:
         run = self.run
-        sg = None
         if self.use_db and run.db is not None:
-            # its semantic graph built once, for the lookup and for the record added after
-            # the solve (each build walks every factor and variable of g)
-            sg = run.db.graph_of(g)
-            verdict = run.db.lookup(sg)
+            # its semantic graph built at most once, for the lookup and the record added after
+            # the solve, and only when a record could match it (`lazy_database`)
+            verdict = run.db.lookup(g)
             if verdict is not None:
                 if verdict:
                     run.stats.db_feasible_hits += 1
@@ -295,7 +293,7 @@ class FeasibilityCheck(CollisionScreen, TrajectoryPhase, Confirmation, InferredV
                     conflict = names_of(run.task, to_partial_states(g))
                 except ValueError:
                     conflict = None
-            run.db.add(sg, r.feasible, conflict)
+            run.db.add(g, r.feasible, conflict)
         return r
 
 

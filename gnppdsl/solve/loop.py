@@ -80,7 +80,7 @@ class Loop(Anytime):
         if self.batch_hit(plan):           # a queued renamed candidate it holds is infeasible
             return None
         graph = self.build_graph(plan.states)
-        if self.db is not None and self.db.infeasible:   # (no record: no semantic graph to build)
+        if self.db is not None and self.db.knows_infeasible():   # (no record: no semantic graph to build)
             known = self.db.infeasible_inside(graph)
             if known:
                 self.stats.db_infeasible_hits += 1

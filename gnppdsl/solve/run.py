@@ -11,12 +11,13 @@ import numpy as np
 
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.conflicts.batch import Batcher, Reachable
-from gnppdsl.conflicts.database import SubgraphDatabase, names_of
+from gnppdsl.conflicts.database import names_of
 from gnppdsl.conflicts.lifting import Lifter
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.compiled import Compiled
 from gnppdsl.solve.deadline import TimeUp, deadline_solver
+from gnppdsl.solve.lazy_database import LazyDatabase
 from gnppdsl.solve.optimal import optimisation_phase
 from gnppdsl.solve.options import Progress, SolveOptions
 from gnppdsl.solve.path_length import path_lengths
@@ -76,9 +77,9 @@ class Run(ReachabilityCosts, BatchLearning):
                                           # distances' curvature: later ones start with it (`screening`)
         self.nlp_calls = 0                # NLPs solved through FeasibilityCheck.solve
         self.heuristic_solves = 0         # NLPs Alg. 1 solved itself for a convergence point
-        self.db: SubgraphDatabase | None = None
+        self.db: LazyDatabase | None = None   # records built when a query could match (`lazy_database`)
         if "g" in options.switches:
-            self.db = SubgraphDatabase(options.database, scope=compiled.domain_name,
+            self.db = LazyDatabase(options.database, scope=compiled.domain_name,
                                        fingerprint=compiled.fingerprint, object_key=compiled.object_key)
         self.lifter: Lifter | None = None
         if options.lift_conflicts and compiled.object_key is not None:
