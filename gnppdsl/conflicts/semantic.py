@@ -209,6 +209,19 @@ class SemanticGraph:
         return SemanticGraph.from_graph(g)
 
 
+def subgraph_variables(subgraph: Any) -> list[VarInstance]:
+    """The variables a subgraph names itself (its `variables` attribute, method or dict; none
+    for a single factor): vertices of its semantic graph even where no factor touches them."""
+    sub_vars = getattr(subgraph, "variables", None)
+    if sub_vars is None or isinstance(subgraph, FactorInstance):
+        return []
+    if callable(sub_vars):
+        sub_vars = sub_vars()
+    if isinstance(sub_vars, dict):
+        sub_vars = sub_vars.values()
+    return [v for v in sub_vars if isinstance(v, VarInstance)]
+
+
 def semantic_graph(subgraph: Any, variables: Iterable[VarInstance] = (),
                    object_key: ObjectKey | None = None) -> SemanticGraph:
     """Build the semantic graph of a subgraph-NLP.
@@ -219,14 +232,7 @@ def semantic_graph(subgraph: Any, variables: Iterable[VarInstance] = (),
     `factor_label`); without it the caller must scope the database to one scene.
     """
     factors = factors_of(subgraph)
-    extra = list(variables)
-    sub_vars = getattr(subgraph, "variables", None)
-    if sub_vars is not None and not isinstance(subgraph, FactorInstance):
-        if callable(sub_vars):
-            sub_vars = sub_vars()
-        if isinstance(sub_vars, dict):
-            sub_vars = sub_vars.values()
-        extra.extend(v for v in sub_vars if isinstance(v, VarInstance))
+    extra = list(variables) + subgraph_variables(subgraph)
     all_vars = [v for f in factors for v in f.variables] + extra
     t0 = min((v.step for v in all_vars), default=0)
 

@@ -22,7 +22,7 @@ from typing import Any
 from gnppdsl.compile.factors import FactorInstance, VarInstance
 from gnppdsl.conflicts.database import Entry, Names, SubgraphDatabase
 from gnppdsl.conflicts.mapping import factors_of
-from gnppdsl.conflicts.semantic import SemanticGraph, semantic_graph, variable_label
+from gnppdsl.conflicts.semantic import SemanticGraph, semantic_graph, subgraph_variables, variable_label
 
 
 def coarse_labels(factors: tuple[FactorInstance, ...], variables: tuple[VarInstance, ...]) -> Counter:
@@ -54,16 +54,7 @@ def coarse_of_graph(sg: SemanticGraph) -> Counter:
 def _parts(subgraph: Any) -> tuple[tuple[FactorInstance, ...], tuple[VarInstance, ...]]:
     """The factors and the extra variables `semantic_graph(subgraph)` would read, copied now
     (a graph-NLP may change after it was checked)."""
-    factors = tuple(factors_of(subgraph))
-    extra: list[VarInstance] = []
-    sub_vars = getattr(subgraph, "variables", None)
-    if sub_vars is not None and not isinstance(subgraph, FactorInstance):
-        if callable(sub_vars):
-            sub_vars = sub_vars()
-        if isinstance(sub_vars, dict):
-            sub_vars = sub_vars.values()
-        extra.extend(v for v in sub_vars if isinstance(v, VarInstance))
-    return factors, tuple(extra)
+    return tuple(factors_of(subgraph)), tuple(subgraph_variables(subgraph))
 
 
 class LazyDatabase(SubgraphDatabase):
