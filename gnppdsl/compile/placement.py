@@ -121,31 +121,10 @@ def base_footprint(spec) -> Footprint | None:
     P = load_robot(spec).planar_points(link, c)
     if not len(P):
         return None
-    return Footprint(_convex_hull([(float(px), float(py)) for px, py in P]),
+    from gnppdsl.geometry.verify import convex_hull_2d
+
+    return Footprint(tuple((float(px), float(py)) for px, py in convex_hull_2d(P)),
                      float(spec.attributes.get("base_clearance", 0.0) or 0.0))
-
-
-def _convex_hull(points: Sequence[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
-    """The counter-clockwise convex hull (Andrew's monotone chain). Why not scipy's: scipy is
-    only a test dependency, and these hulls have a few dozen points."""
-    pts = sorted(set(points))
-    if len(pts) < 3:
-        return tuple(pts)
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list = []
-    upper: list = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return tuple(lower[:-1] + upper[:-1])
 
 
 def _segment_gap(p, a, b) -> float:

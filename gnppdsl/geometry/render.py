@@ -104,8 +104,8 @@ def _mobile_bases(ctx, state: dict[str, Any], entities: frozenset | None) -> lis
 
 
 def _hull_poly(pts2: np.ndarray) -> list[tuple[float, float]]:
-    from gnppdsl.geometry.verify import _hull2
-    h = _hull2(pts2)
+    from gnppdsl.geometry.verify import convex_hull_2d
+    h = convex_hull_2d(pts2)
     return [tuple(map(float, p)) for p in h]
 
 

@@ -380,8 +380,9 @@ def point_in_gripper(ctx_or_scene, robot: str, value, point, half_extents: tuple
     return GraspCheck(bool(inside), tuple(float(x) for x in local), tuple(he))
 
 
-def _hull2(pts: np.ndarray) -> np.ndarray:
-    """2-D convex hull (Andrew's monotone chain), counter-clockwise."""
+def convex_hull_2d(pts: np.ndarray) -> np.ndarray:
+    """2-D convex hull (Andrew's monotone chain), counter-clockwise: the verifier's support
+    polygons, the renderer's outlines and the mobile base's `compile.placement.Footprint`."""
     P = sorted(set(map(tuple, np.round(pts, 12))))
     if len(P) <= 2:
         return np.array(P)
@@ -438,7 +439,7 @@ def resting_on(ctx_or_scene, obj: str, obj_value, support: str, support_value=No
     d = signed_distance(bo, To[:3, :3], To[:3, 3], bs, Ts[:3, :3], Ts[:3, 3])
     vs = world_vertices(bs, Ts)
     if planar:
-        inside = _in_polygon(To[:2, 3], _hull2(vs[:, :2]))
+        inside = _in_polygon(To[:2, 3], convex_hull_2d(vs[:, :2]))
         return RestingCheck(inside, None, inside, d)
     # measured in the support's frame: a support that is itself slightly tilted (a block on a
     # block) still has an exact top face there, and the gap is the object's lowest point above it
@@ -452,7 +453,7 @@ def resting_on(ctx_or_scene, obj: str, obj_value, support: str, support_value=No
     gap = float(vo_l[:, 2].min() - top)
     top_face = vs_l[vs_l[:, 2] >= top - 1e-6][:, :2]
     centre = Ti[:3, :3] @ To[:3, 3] + Ti[:3, 3]
-    inside = _in_polygon(centre[:2], _hull2(top_face)) if len(top_face) >= 3 else False
+    inside = _in_polygon(centre[:2], convex_hull_2d(top_face)) if len(top_face) >= 3 else False
     ok = abs(gap) <= tol and inside and d >= -tol
     return RestingCheck(bool(ok), gap, bool(inside), d)
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gnppdsl.compile.placement import (Footprint, _convex_hull, _footprint_free, _polygon_gap,
-                                       base_footprint, base_radius)
+from gnppdsl.compile.placement import _footprint_free, _polygon_gap, base_footprint, base_radius
+from gnppdsl.geometry.verify import convex_hull_2d
 
 MOBILE = Path(__file__).resolve().parents[2] / "examples" / "mobile"
 
@@ -37,8 +37,8 @@ def test_polygon_gap_equals_brute_force():
     rng = np.random.default_rng(0)
     overlaps = separated = 0
     for _ in range(60):
-        A = _convex_hull([tuple(p) for p in rng.uniform(-1, 1, (8, 2))])
-        B = _convex_hull([tuple(p) for p in rng.uniform(-1, 1, (8, 2)) + rng.uniform(-2.5, 2.5, 2)])
+        A = [tuple(p) for p in convex_hull_2d(rng.uniform(-1, 1, (8, 2)))]
+        B = [tuple(p) for p in convex_hull_2d(rng.uniform(-1, 1, (8, 2)) + rng.uniform(-2.5, 2.5, 2))]
         gap = _polygon_gap(A, B)
         g = np.stack(np.meshgrid(np.linspace(-4, 4, 321), np.linspace(-4, 4, 321)), -1).reshape(-1, 2)
         common = np.any(_inside(g, A) & _inside(g, B))
@@ -58,7 +58,7 @@ def test_polygon_gap_equals_brute_force():
 def test_convex_hull_is_counter_clockwise_and_contains_the_points():
     rng = np.random.default_rng(1)
     pts = rng.normal(size=(40, 2))
-    H = _convex_hull([tuple(p) for p in pts])
+    H = [tuple(p) for p in convex_hull_2d(pts)]
     assert _inside(pts, H).all()
     area = sum(H[i][0] * H[(i + 1) % len(H)][1] - H[(i + 1) % len(H)][0] * H[i][1] for i in range(len(H)))
     assert area > 0
