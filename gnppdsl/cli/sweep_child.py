@@ -10,13 +10,14 @@ from __future__ import annotations
 import json
 import sys
 
-from gnppdsl.cli.sweep import Cell, RunSettings, solve_cell
+from gnppdsl.cli.sweep import Cell, RunSettings, preload_solver, solve_cell
 
 
 def main() -> int:
     request = json.load(sys.stdin)
     cell = Cell(**request["cell"])
     settings = RunSettings(**request["settings"])
+    preload_solver()          # start-up, not the run's time (`sweep.preload_solver`)
     row = solve_cell(cell, settings)
     sys.stdout.write("\n" + json.dumps(row, default=str) + "\n")
     return 0
