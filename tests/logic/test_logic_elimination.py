@@ -130,11 +130,11 @@ def _first_answer_padded(planner, padded):
     real = planner._run
     calls = []
 
-    def run(horizon, limit, cpu_limit=None):
+    def run(horizon, limit, cpu_limit=None, search=None):
         calls.append(horizon)
         if cpu_limit is None:
             return Status.FOUND, list(padded)
-        return real(horizon, limit, cpu_limit)
+        return real(horizon, limit, cpu_limit, search=search)
     planner._run = run
     return calls
 
@@ -259,7 +259,7 @@ def test_a_bounded_search_that_ran_out_is_not_repeated_at_the_same_bound():
     planner = FastDownwardPlanner(task, max_horizon=10, eliminate=False)
     bounded = []
 
-    def run(horizon, limit, cpu_limit=None):
+    def run(horizon, limit, cpu_limit=None, search=None):
         if cpu_limit is None:
             planner.fd_cpu += 0.1
             return Status.FOUND, list(answer[0])
