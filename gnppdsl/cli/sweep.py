@@ -10,12 +10,12 @@ Three pieces make that so:
   it arrives, so a sweep killed at any moment keeps every finished run; started again on the same
   file it runs only the cells that have no row yet (resume).
 - Executors: `run_serial` runs the cells in this process, one problem parsed once and compiled
-  afresh for every run (no Ray needed: the default); `run_on_ray` hands each cell to a Ray task (`--workers N` starts a local
-  Ray, `--address` joins a cluster) that runs it in a child process of its own, with its own
-  wall-clock cap and memory cap, so a run that hangs, crashes or runs out of memory becomes a
-  row saying so and never takes the sweep down. Ray's own task timeouts and memory monitor act
-  on the worker process (killing it loses the row and Ray retries or fails the task); a child
-  process with `setrlimit` and a `subprocess` timeout gives every failure a row.
+  afresh for every run (no Ray needed: the default); `run_on_ray` hands each cell to a Ray task
+  (`--workers N` starts a local Ray, `--address` joins a cluster) that runs it in a child process
+  of its own, with its own wall-clock cap and memory cap, so a run that hangs, crashes or runs out
+  of memory becomes a row saying so and never takes the sweep down. Ray's own task timeouts and
+  memory monitor act on the worker process (killing it loses the row and Ray retries or fails the
+  task); a child process with `setrlimit` and a `subprocess` timeout gives every failure a row.
 """
 from __future__ import annotations
 

@@ -16,13 +16,13 @@ conversion that blew up on the Lab domain's `clear(x) := not exists o . parent(o
 (8 blocks: no answer in 60 s and 3 GB); the approximation treats negated derived conditions as
 reachable, so the relaxation stays an over-approximation and FF's dead ends stay safe.
 The search is lazy greedy best-first with that FF and its preferred operators on unit costs,
-closed states reopened (see DEFAULT_SEARCH for why not the paper's `astar(ff())`): plans are
-short but not proven shortest. Greedy search takes detours (lab5_paper: 18-20 steps where 16
-exist), so each plan is shortened by action elimination (`gnppdsl.logic.elimination`) and by
-searching again below its length (weighted A*, `TIGHTEN_SEARCH`) for at most `TIGHTEN_CPU` seconds (`_tighten`); `Plan.shortest` is
-True only when such a search answered "no plan". `bound = H + 1` keeps plans within the
-horizon `H`; since FF's dead ends are safe and closed states are reopened when reached by a
-shorter path, "no plan" within the bound is a proof.
+closed states reopened (see DEFAULT_SEARCH for why not the paper's `astar(ff())`): plans are short
+but not proven shortest. Greedy search takes detours (lab5_paper: 18-20 steps where 16 exist), so
+each plan is shortened by action elimination (`gnppdsl.logic.elimination`) and by searching again
+below its length (weighted A*, `TIGHTEN_SEARCH`) for at most `TIGHTEN_CPU` seconds (`_tighten`);
+`Plan.shortest` is True only when such a search answered "no plan". `bound = H + 1` keeps plans
+within the horizon `H`; since FF's dead ends are safe and closed states are reopened when reached
+by a shorter path, "no plan" within the bound is a proof.
 
 Plan states and validity come from the SAS+ semantics of the original task
 (`gnppdsl.logic.validate`), never from FD: a plan that breaks a conflict or the task is a bug
