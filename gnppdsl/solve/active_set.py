@@ -32,7 +32,13 @@ class ActiveSet:
     avoid: tuple[str, ...] | None = None    # categories (`verify_solution.CATEGORIES`); None: all
     margin: float = 0.0                     # sdist >= margin for the pairs it adds
     near: float = 0.005                     # pairs closer than margin + near at a solution join
-    max_rounds: int = 4
+    max_rounds: int = 4                     # rounds for an optimised solution (then `Coverage.unoptimised`)
+    # rounds for a solution the optimisation phase did not move: it has no feasible solution to
+    # fall back on, so the run ends verification_failed when these run out. Why more: each
+    # round re-solves for feasibility from the last solution and adds fewer pairs (field5 seed
+    # 3: 99, 6, 5, 3, then 1 pair at -0.0039 m, clean after the fifth round; with 4 it ended
+    # verification_failed, Table I 149/150 on a523e21)
+    max_feasible_rounds: int = 8
 
 
 def active_set_of(problem: Any) -> ActiveSet:

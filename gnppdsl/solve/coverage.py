@@ -77,7 +77,8 @@ class Coverage(PlanEvaluation):
             c0 = time.process_time()
             report = verify(self.compiled, res, settings)
             extra_cpu = time.process_time() - c0     # the earlier rounds are in the result's own cpu_time
-            if report.ok or not self.options.active_set or rounds >= settings.max_rounds \
+            limit = settings.max_rounds if res.stats.optimised else settings.max_feasible_rounds
+            if report.ok or not self.options.active_set or rounds >= limit \
                     or any(f.kind != "collision" for f in report.issues):
                 break
             # an optimised solution: a pair colliding along a motion joins all of it (the
