@@ -280,9 +280,12 @@ def run_serial(cells: list[Cell], settings: RunSettings, on_row: Callable[[dict]
             for c in group:
                 on_row(failure_row(c, RUN_ERROR, str(err)))
             continue
+        problem = compiled.problem
         for k, c in enumerate(group):
-            fresh = compiled if k == 0 else compile_problem(compiled.problem)
+            # the loaded one for the first run, then dropped: no earlier run's instances stay alive
+            fresh, compiled = (compiled if k == 0 else compile_problem(problem)), None
             on_row(solve_cell(c, settings, fresh, progress_for(c) if progress_for else None))
+            del fresh
 
 
 # the packages whose modules a solve imports on first use (`gnppdsl.lazy` keeps the command
