@@ -59,4 +59,6 @@ class CheckMemory:
                                           # infeasible solves: what `certify` decides subgraphs at
         self.parent_of: dict = {}         # signature -> the graph at whose convergence point it was
                                           # decided (certified, or its only violated component)
+        self.cold_checked: set = set()    # signatures `cold_refutes` solved from their initial guess
+        self.misled = False               # a one-start verdict was overturned (`forget_unconfirmed`)
         self.components: set = set()      # ... of those, the components (`infer_components`)

@@ -23,6 +23,11 @@ if TYPE_CHECKING:  # pragma: no cover  (casadi)
     from gnppdsl.nlp.feasibility import FeasibilityResult
 
 
+COLD_MAX_COST = 2000.0
+"""`Confirmation.cold_refutes`: the largest ipopt iteration cost (`FeasibilitySolver.iteration_cost`,
+plain rows) of a graph that gets a start from its initial guess before it becomes a conflict."""
+
+
 class Confirmation(CheckMemory):
     """The feasibility check's confirmations of one-start verdicts (see the module docstring)."""
 
@@ -38,14 +43,14 @@ class Confirmation(CheckMemory):
         that led to it are suspect (the caller forgets them and searches again with restarts)."""
         key = g.signature()
         if key not in self.unconfirmed:
-            return True
+            return not self.cold_refutes(g)
         self.unconfirmed.discard(key)
         run = self.run
         parent = self.parent_of.get(key)
         if parent is not None:
             verdict = self.confirm_by_parent(g, parent)
             if verdict is not None:
-                return verdict
+                return verdict and not self.cold_refutes(g)
         if getattr(self.results.get(key), "starts", 1) == 0:
             # no ipopt run behind the verdict (certified, or inferred at a graph's x*): these
             # restarts are g's first solve, an NLP
@@ -58,11 +63,49 @@ class Confirmation(CheckMemory):
                                                  or "walltime" in str(r.status).lower()):
             raise TimeUp()
         if r is None or not r.feasible:
+            if self.cold_refutes(g):
+                return False
             self.remember_infeasible(g)
             return True
         self.results[key] = r
         self.values.update(r.values)
         return False
+
+    def cold_refutes(self, g: GraphNLP) -> bool:
+        """Is g, about to become a conflict, feasible from its own initial guess (the factory's
+        start: objects where the plan's facts put them, arms at home), solved once with no
+        warm start? Then the infeasible verdict came from the plan's earlier solutions, and g's
+        result becomes that solution (the caller searches again). Only for graphs whose ipopt
+        iteration costs at most COLD_MAX_COST plain rows (object-only levels; the Lab's
+        keyframe graphs with arms cost 2300-13000), each once per plan, and only on a plan
+        where a one-start verdict has already been overturned by a restart (`misled`, set by
+        `forget_unconfirmed`): there the plan's solutions are known to mislead, elsewhere the
+        start would be an NLP more per conflict (planar p5: one NLP per failed plan).
+
+        Why: every start of a verdict but the random ones leans on the warm start, the first
+        as it is, the odd restarts the initial guess moved by `restart_noise`. On a cluttered
+        table with six obstacles (clutter_6 --seed 5 of examples/scalability/generate.py) the
+        last state of a 24-step plan, five blocks on pads and six moved obstacles on the table
+        (102 factors, no robot), failed from the warm start and both restarts, and became a
+        17-fact conflict that lifting could not generalise (~60 s of the 75 s solve); from
+        the initial guess it is feasible in 0.1 s."""
+        key = g.signature()
+        if not self.misled or key in self.cold_checked or self.solver.iteration_cost(g) > COLD_MAX_COST:
+            return False
+        self.cold_checked.add(key)
+        run = self.run
+        opts = self.solver.options
+        opts.time_limit = max(0.05, run.remaining())
+        with overridden(opts, restarts=0):
+            r = self.solver.solve(g, seed=run.options.seed)
+        run.nlp_calls += 1
+        if r is None or not r.feasible:
+            return False
+        run.say(f"  {g.name}: feasible from its initial guess; searching again")
+        run.stats.cold_refutations += 1
+        self.results[key] = r
+        self.values.update(r.values)
+        return True
 
     def confirm_by_parent(self, g: GraphNLP, parent: GraphNLP) -> bool | None:
         """`confirm` for a g decided at the convergence point of a cheap `parent` (`certify`,
@@ -115,7 +158,9 @@ class Confirmation(CheckMemory):
 
     def forget_unconfirmed(self) -> None:
         """Drop every one-start infeasible verdict (after one of them proved wrong), and the
-        certificates drawn from them."""
+        certificates drawn from them. The plan's warm starts are then known to mislead
+        (`misled`: conflicts get a start from their initial guess, `cold_refutes`)."""
+        self.misled = True
         for key in self.unconfirmed:
             self.results.pop(key, None)
             self.parent_of.pop(key, None)

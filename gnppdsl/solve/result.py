@@ -138,6 +138,7 @@ class Stats:
     inferred_verdicts: int = 0        # infeasible components located at an infeasible graph's x*
     certified_verdicts: int = 0       # infeasible subgraphs certified at a graph's x* (no NLP)
     lazy_retries: int = 0             # Alg. 1 searches repeated with restarts (a one-start verdict was wrong)
+    cold_refutations: int = 0         # conflicts-to-be found feasible from their initial guess (`Confirmation.cold_refutes`)
     kernels_native: int = 0           # derivative kernels run as compiled C (setting jit)
     kernels_compiled: int = 0         # ... of which compiled by this solve (the rest: from the cache)
     kernel_compile_time: float = 0.0  # seconds generating and compiling them (C compiler included)
