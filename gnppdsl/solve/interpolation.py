@@ -54,3 +54,20 @@ def straight_line(xa: np.ndarray, xb: np.ndarray, waypoints: int, space: str) ->
     if space == "SE3" and pts.shape[1] == 7:
         pts[:, 3:7] /= np.maximum(np.linalg.norm(pts[:, 3:7], axis=1, keepdims=True), 1e-12)
     return pts.reshape(-1)
+
+
+def via_line(xa: np.ndarray, xv: np.ndarray, xb: np.ndarray, waypoints: int, space: str) -> np.ndarray:
+    """`waypoints` points from xa through xv to xb, evenly spaced along the two straight
+    segments (quaternions of SE3 points renormalised), stacked into one vector: a detour start
+    through another keyframe of the same variable (`TrajectoryPhase.detour_start`)."""
+    d1, d2 = float(np.linalg.norm(xv - xa)), float(np.linalg.norm(xb - xv))
+    if d1 + d2 <= 0.0:
+        return straight_line(xa, xb, waypoints, space)
+    t = np.linspace(0.0, d1 + d2, waypoints)[:, None]
+    first = xa[None, :] + (t / max(d1, 1e-12)) * (xv - xa)[None, :]
+    second = xv[None, :] + ((t - d1) / max(d2, 1e-12)) * (xb - xv)[None, :]
+    pts = np.where(t <= d1, first, second)
+    pts[0], pts[-1] = xa, xb
+    if space == "SE3" and pts.shape[1] == 7:
+        pts[:, 3:7] /= np.maximum(np.linalg.norm(pts[:, 3:7], axis=1, keepdims=True), 1e-12)
+    return pts.reshape(-1)
