@@ -211,7 +211,19 @@ class TrajectoryPhase(CheckMemory):
         phase's distance queries and Hessian blocks for a path whose straight-line start is
         already its solution)."""
         idle = {}
+        for v, _, space, xa, xb in self.phase_ends(s, i):
+            if np.max(np.abs(xa - xb), initial=0.0) <= IDLE_MOTION:
+                # the straight line: its end points are exactly the keyframes, which the
+                # solver moved by ~1e-8 although nothing asked the arm to move
+                idle[v] = straight_line(xa, xb, v.waypoints, space)
+        return idle
+
+    def phase_ends(self, s: GraphNLP, i: int) -> list[tuple[VarInstance, str, str, np.ndarray, np.ndarray]]:
+        """Phase i's trajectories of s whose keyframes at i and i+1 have values, each with its
+        keyframes' key and space and their values at i and i+1 (flat, of the trajectory's point
+        size), in s's order."""
         by = {(v.key, v.step): v for v in self.values if not v.waypoints}
+        ends = []
         for v in s.variables:
             if not v.waypoints or v.step != i:
                 continue
@@ -221,11 +233,9 @@ class TrajectoryPhase(CheckMemory):
                 continue
             xa = np.asarray(self.values[a], float).reshape(-1)
             xb = np.asarray(self.values[b], float).reshape(-1)
-            if xa.size == v.point_dim and np.max(np.abs(xa - xb), initial=0.0) <= IDLE_MOTION:
-                # the straight line: its end points are exactly the keyframes, which the
-                # solver moved by ~1e-8 although nothing asked the arm to move
-                idle[v] = straight_line(xa, xb, v.waypoints, a.space)
-        return idle
+            if xa.size == v.point_dim:
+                ends.append((v, key, a.space, xa, xb))
+        return ends
 
     def detour_start(self, s: GraphNLP, i: int, start: dict) -> dict[VarInstance, np.ndarray]:
         """Starts of phase i's moving trajectories through another keyframe of the same
@@ -264,14 +274,8 @@ class TrajectoryPhase(CheckMemory):
             return {}
         by = {(v.key, v.step): v for v in self.values if not v.waypoints}
         out: dict[VarInstance, np.ndarray] = {}
-        for v in sorted((v for v in s.variables if v.waypoints and v.step == i), key=lambda v: v.key):
-            key = keyframe_of(v, s.variables, [x for h in s.graph.neighbors(v) for x in s.graph.neighbors(h)])
-            a, b = by.get((key, i)), by.get((key, i + 1))
-            if a is None or b is None:
-                continue
-            xa = np.asarray(self.values[a], float).reshape(-1)
-            xb = np.asarray(self.values[b], float).reshape(-1)
-            if xa.size != v.point_dim or np.max(np.abs(xa - xb), initial=0.0) <= IDLE_MOTION:
+        for v, key, space, xa, xb in sorted(self.phase_ends(s, i), key=lambda e: e[0].key):
+            if np.max(np.abs(xa - xb), initial=0.0) <= IDLE_MOTION:
                 continue
             seen = {np.round(xa, 3).tobytes(), np.round(xb, 3).tobytes()}
             choice = None
@@ -280,7 +284,7 @@ class TrajectoryPhase(CheckMemory):
                 if k != key or xv.size != xa.size or np.round(xv, 3).tobytes() in seen:
                     continue
                 seen.add(np.round(xv, 3).tobytes())
-                p = via_line(xa, xv, xb, v.waypoints, a.space)
+                p = via_line(xa, xv, xb, v.waypoints, space)
                 rank = (score({**point, v: p}), np.linalg.norm(xv - xa) + np.linalg.norm(xb - xv))
                 if rank[0] < best_score - 1e-9 and (choice is None or rank < choice[0]):
                     choice = (rank, p)
