@@ -307,7 +307,21 @@ class Run(ReachabilityCosts, BatchLearning):
         if res.status is Status.TIMEOUT or self.remaining() <= 0:
             return self.result(TIME_LIMIT, f"time limit of {self.options.time_limit:g} s reached "
                                            f"after {self.stats.plans} plans")
-        return self.result(NO_PLAN, res.message or "no plan")
+        return self.result(NO_PLAN, (res.message or "no plan") + self.local_conflicts_note())
+
+    def local_conflicts_note(self) -> str:
+        """For a "no plan" under conflicts that NLPs found (Alg. 1 or the database of their
+        verdicts), what it rests on: a local solver's failure from the starts it tried, not a
+        proof. Why said: pick_place3 instance 8 with plain GNPP learns {parent(red1) = center,
+        not moved(red1)} -> pick from a base drive that fails from its straight-line start, and
+        ends "no plan", while R-LGP's graph waypoints solve the same pick; a user must be able to
+        tell such a verdict from a logical impossibility."""
+        n = sum(c.source in ("nlp", "database") for c in self.conflicts)
+        if not n:
+            return ""
+        return (f"; {n} of the conflicts {'rests' if n == 1 else 'rest'} on NLPs infeasible from every start tried (local "
+                f"solves, not proofs): another --seed, or --algorithm rlgp on a mobile "
+                f"manipulator, may find a plan")
 
     def violation(self, factors: Sequence[FactorInstance], point: dict,
                   variables: Iterable[VarInstance] = ()) -> float:

@@ -217,3 +217,14 @@ def test_a_false_conflict_without_facts_is_refuted_not_learnt(monkeypatch):
     assert res.conflicts[0].source == "plan" and "without facts" in res.conflicts[0].text
     for c in res.conflicts[1:]:
         check_conflict_infeasible(compiled, c)
+
+
+def test_a_no_plan_under_nlp_conflicts_says_they_are_local_solves():
+    """The "no plan" of a problem whose only conflict an NLP found says what it rests on (the
+    conflicts from the starts tried are not proofs); a "no plan" with no NLP conflict does not."""
+    res = solve_compiled(unsolvable_problem(), SolveOptions(switches="trn", time_limit=60, max_horizon=5))
+    assert res.status == NO_PLAN and [c.source for c in res.conflicts] == ["nlp"]
+    assert "1 of the conflicts rests on NLPs infeasible from every start tried" in res.message
+    logical = solve_compiled(unsolvable_problem(), SolveOptions(switches="trn", time_limit=60, max_horizon=1))
+    assert logical.status == NO_PLAN and not logical.conflicts
+    assert "on NLPs infeasible" not in logical.message
