@@ -19,6 +19,7 @@ from gnppdsl.solve.check_memory import StampedValues
 from gnppdsl.solve.feasibility_check import equality_pair, FeasibilityCheck
 from gnppdsl.solve.loop import Loop, solve_compiled
 from gnppdsl.solve.options import SolveOptions
+from gnppdsl.solve.timing import result_states
 from solve_checks import check_solution
 from solve_lies import lie_when
 from solve_toy import occupied_problem
@@ -101,15 +102,8 @@ def test_a_plan_whose_keyframes_prove_feasible_is_solved_again_not_searched(monk
 def _checker_on_the_toy_plan():
     compiled = occupied_problem(waypoints=4)
     run = Loop(compiled, OPTIONS, None)
-    task = compiled.task
     names = ["pick(b2, g, s2)", "place(b2, g, side)", "pick(b1, g, s1)", "place(b1, g, target)"]
-    state, states = list(task.initial), [tuple(task.initial)]
-    for n in names:
-        op = next(o for o in task.operators if o.name == n)
-        for e in op.effects:
-            state[e.var] = e.value
-        states.append(tuple(state))
-    graph = run.build_graph(states)
+    graph = run.build_graph([tuple(x) for x in result_states(compiled.task, names)])
     checker = FeasibilityCheck(run, run.new_solver(), graph, use_db=False)
     return run, checker, graph.apply_relaxation({"traj"}, "modes")
 

@@ -25,6 +25,7 @@ from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.interpolation import interpolate_trajectories, straight_line, via_line
 from gnppdsl.solve.loop import Loop
 from gnppdsl.solve.options import SolveOptions
+from gnppdsl.solve.timing import result_states
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(__file__).resolve().parent / "data" / "work5_seed5_motion8.json"
@@ -48,14 +49,7 @@ def test_via_line_runs_evenly_through_the_via_point():
 def _phase():
     compiled = load_and_compile([str(ROOT / "examples" / "workshop" / "work5.pntc")])
     run = Loop(compiled, SolveOptions(switches="trng", seed=5, time_limit=300, jit=False), None)
-    task = compiled.task
-    state, states = list(task.initial), [tuple(task.initial)]
-    for name in PLAN:
-        op = next(o for o in task.operators if o.name == name)
-        for e in op.effects:
-            state[e.var] = e.value
-        states.append(tuple(state))
-    graph = run.build_graph(states)
+    graph = run.build_graph([tuple(x) for x in result_states(compiled.task, PLAN)])
     checker = FeasibilityCheck(run, run.new_solver(), graph, use_db=False)
     recorded = {(k, s): np.asarray(x, float) for k, s, x in json.loads(DATA.read_text())["keyframes"]}
     checker.values = StampedValues({v: recorded[(v.key, v.step)] for v in graph.variables
