@@ -320,8 +320,8 @@ class Run(ReachabilityCosts, BatchLearning):
         if not n:
             return ""
         return (f"; {n} of the conflicts {'rests' if n == 1 else 'rest'} on NLPs infeasible from every start tried (local "
-                f"solves, not proofs): another --seed, or --algorithm rlgp on a mobile "
-                f"manipulator, may find a plan")
+                f"solves, not proofs): another seed, or R-LGP on a mobile manipulator, may "
+                f"find a plan")
 
     def violation(self, factors: Sequence[FactorInstance], point: dict,
                   variables: Iterable[VarInstance] = ()) -> float:
