@@ -88,11 +88,12 @@ def optimisation_phase(graph: GraphNLP, terms: list[FactorInstance],
     runs = [("exact", values), ("limited-memory", values)]
     if previous is not None and set(previous) >= set(graph.variables):
         runs.insert(0, ("exact", {v: previous[v] for v in graph.variables}))
+    # every run, from `previous` or from `values`, is repaired by `polish` when there is one
+    share = FEASIBLE_SHARE if polish is not None else STRICT_SHARE
     for hessian, start in runs:
         left = min(cap, t_end - time.perf_counter())
         if left <= 0.05:
             break
-        share = FEASIBLE_SHARE if polish is not None else STRICT_SHARE
         out = optimise(graph, terms, start, compiler, time_limit=left, hessian=hessian,
                        max_iter=OPTIMISE_MAX_ITER, feasible_below=share * tolerance,
                        patience=OPTIMISE_PATIENCE)
