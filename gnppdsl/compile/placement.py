@@ -94,12 +94,16 @@ class Footprint:
 
         c, s = math.cos(yaw), math.sin(yaw)
         outline = [(x + c * px - s * py, y + s * px + c * py) for px, py in self.hull]
+        reach = max(math.hypot(px, py) for px, py in self.hull)   # the outline within this of (x, y)
         for o in obstacles:
             ox, oy = float(o.pose[0]), float(o.pose[1])
             size = tuple(o.shape.size or ())
             if o.shape.kind == "box" and len(size) >= 2:
                 t, ex, ey = _yaw(o.pose[3:7]), size[0] / 2, size[1] / 2
                 ct, st = math.cos(t), math.sin(t)
+                u, v = ct * (x - ox) + st * (y - oy), -st * (x - ox) + ct * (y - oy)
+                if math.hypot(max(abs(u) - ex, 0.0), max(abs(v) - ey, 0.0)) - reach >= self.clearance:
+                    continue              # far enough whatever the outline's turn: same verdict, cheaper
                 rect = [(ox + ct * u - st * v, oy + st * u + ct * v)
                         for u, v in ((ex, ey), (-ex, ey), (-ex, -ey), (ex, -ey))]
                 if _polygon_gap(outline, rect) < self.clearance:
