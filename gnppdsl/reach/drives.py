@@ -260,4 +260,45 @@ def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstac
     return out
 
 
-__all__ = ["TravelMap", "plan_bases", "drive_waypoints", "RING_WEIGHT"]
+def pair_drives(targets, home: Sequence[float], obstacles, lo: Sequence[float] | None = None,
+                hi: Sequence[float] | None = None, radius: float = BASE_RADIUS,
+                footprint: Footprint | None = None) -> dict:
+    """R-LGP's base drive between consecutive picks and puts, for the planner's pair costs:
+    `targets` maps an operator to its target (x, y, ...); the result maps (prev, op) to the least
+    drive (m, `TravelMap`) from a free ring point of prev's target to one of op's, plus the ring
+    penalty of the point reached (RING_WEIGHT, as `plan_bases`), and (None, op) to the least
+    drive from home. A target without a free ring point has no entries. Per pair the two ends
+    are chosen independently, so the sum over a plan is a lower bound of `plan_bases`' chain.
+    Targets are compared by position: a target shared by many operators is computed once."""
+    import numpy as np
+
+    travel = TravelMap(obstacles, radius, lo, hi)
+    points: dict = {}                     # rounded (x, y) -> (ring points (n, 2), penalties (n,))
+    key_of: dict = {}
+    for op, t in targets.items():
+        key = (round(float(t[0]), 6), round(float(t[1]), 6))
+        key_of[op] = key
+        if key not in points:
+            pts = _ring_points(t, obstacles, lo, hi, radius, footprint=footprint)
+            points[key] = (np.asarray([(x, y) for x, y, _ in pts], float).reshape(-1, 2),
+                           np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts]))
+    keys = [k for k in points if len(points[k][0])]
+    start = [np.asarray(home[:2], float).reshape(1, 2)]
+    drive: dict = {}
+    for a in [None] + keys:
+        A = start[0] if a is None else points[a][0]
+        for b in keys:
+            B, pen = points[b]
+            drive[(a, b)] = float((travel.distances(A, B) + pen[None, :]).min())
+    out: dict = {}
+    for op, b in key_of.items():
+        if (None, b) not in drive:
+            continue
+        out[(None, op)] = drive[(None, b)]
+        for prev, a in key_of.items():
+            if (a, b) in drive:
+                out[(prev, op)] = drive[(a, b)]
+    return out
+
+
+__all__ = ["TravelMap", "plan_bases", "pair_drives", "drive_waypoints", "RING_WEIGHT"]
