@@ -10,6 +10,15 @@ Variants, run side by side per problem and seed, alternating (one process, CPU t
 Per run: status, N, plans, conflicts learned, ground instances they forbid, NLPs, CPU seconds
 (this process + children: Fast Downward), and the independent verification of the solution
 (pinocchio + coal over the domain's `avoid` pairs, `gnppdsl.solve.active_set.verify`; a failed check is a failure).
+What the conflicts are (issue 19 item 4: they should grow with the kinds of geometric failure,
+not with the objects): `kinds` = distinct sets of factor templates of the learned conflicts'
+subgraphs (`fixed_world+grasp+kin_switch_rel`: an object out of an arm's reach where it
+starts; `fixed_world+no_collision+on+on`: a pad covered by an unmoved obstacle), `found` = how
+the conflicts were found (`n` the loop's NLP search on a plan, `b` a batch renaming hit by a
+plan), `batch` = NLPs spent deciding renamed candidates / instances learned from them
+(`gnppdsl.conflicts.batch`), `held` = ground conflict instances (originals, symmetric, batched,
+interleaved) that the verified solution's states contain, read from the result's DSL text alone
+(must be 0: a verified plan holding a conflict would make it a false conflict, Prop. 7.1).
 
     python benchmarks/bench_conflicts.py [--problems planar/p6_clutter scalability/clutter_3 ...]
         [--variants plain lifted minimal] [--seeds 1] [--time-limit 300] [--planner auto]
@@ -41,7 +50,62 @@ def run(compiled, variant: str, seed: int, time_limit: float, planner: str | Non
     s = r.stats
     return dict(status=r.status, N=s.N if ok else None, plans=s.plans, conflicts=s.conflicts,
                 instances=s.conflict_instances, nlps=s.nlp_solves, min_nlps=s.minimise_checks,
-                cpu=s.cpu_time, lift=s.lift_time)
+                cpu=s.cpu_time, lift=s.lift_time, kinds=len(kinds(r.conflicts)),
+                found=found(r.conflicts), batch=f"{s.batch_candidates}/{s.batch_learned}",
+                held=len(held_by_solution(r)) if ok else "-")
+
+
+def kind(conflict) -> str:
+    """A conflict's kind: the sorted templates of its subgraph's factors (labels
+    `name(args) -> template @step`), objects and steps left out."""
+    return "+".join(sorted(label.split("->")[-1].split("@")[0].strip().split(".")[-1]
+                           for label in conflict.factors))
+
+
+def kinds(conflicts) -> dict[str, int]:
+    """Learned conflicts per kind (`kind`)."""
+    out: dict[str, int] = {}
+    for c in conflicts:
+        out[kind(c)] = out.get(kind(c), 0) + 1
+    return out
+
+
+def found(conflicts) -> str:
+    """How the conflicts were found: `n3 b1` = three by the loop's NLP search, one by a batch hit."""
+    counts: dict[str, int] = {}
+    for c in conflicts:
+        counts[c.source[:1]] = counts.get(c.source[:1], 0) + 1
+    return " ".join(f"{k}{v}" for k, v in sorted(counts.items()))
+
+
+def _facts(text: str) -> frozenset[str]:
+    """`{parent(b1) = table, not moved(b1)}` -> its facts as text (commas inside parentheses kept)."""
+    body, depth, cur, out = text.strip()[1:-1], 0, "", set()
+    for ch in body:
+        depth += (ch == "(") - (ch == ")")
+        if ch == "," and depth == 0:
+            out.add(cur.strip())
+            cur = ""
+        else:
+            cur += ch
+    if cur.strip():
+        out.add(cur.strip())
+    return frozenset(out)
+
+
+def held_by_solution(result) -> list[str]:
+    """The ground conflict instances (DSL text: originals, symmetric, batched, interleaved) that
+    the solution's states contain at some offset, checked on the result's text alone (not the
+    solver's own matching): a verified plan that holds one shows a false conflict."""
+    states = [_facts(step.state) for step in result.steps]
+    out = []
+    for c in result.conflicts:
+        for text in (c.text, *c.instances, *c.batched, *c.interleaved):
+            seq = [_facts(p) for p in text.split(" -> ")]
+            if any(all(p <= states[i + j] for j, p in enumerate(seq))
+                   for i in range(len(states) - len(seq) + 1)):
+                out.append(text)
+    return out
 
 
 def main(argv=None) -> int:
@@ -55,8 +119,9 @@ def main(argv=None) -> int:
 
     from gnppdsl.solve.compiled import load_and_compile
 
-    print("| problem | variant | seed | status | N | plans | conflicts | instances | NLPs (minimise) | CPU s | lift s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| problem | variant | seed | status | N | plans | conflicts | kinds | found | instances | batch NLPs/learned "
+          "| held | NLPs (minimise) | CPU s | lift s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     totals: dict[tuple[str, str], list[dict]] = {}
     for name in args.problems:
         compiled = load_and_compile(str(ROOT / "examples" / f"{name}.pntc"))
@@ -66,7 +131,8 @@ def main(argv=None) -> int:
                 row = run(compiled, variant, seed, args.time_limit, args.planner)
                 totals.setdefault((name, variant), []).append(row)
                 print(f"| {name} | {variant} | {seed} | {row['status']} | {row['N']} | {row['plans']} | "
-                      f"{row['conflicts']} | {row['instances']} | {row['nlps']} ({row['min_nlps']}) | "
+                      f"{row['conflicts']} | {row['kinds']} | {row['found']} | {row['instances']} | {row['batch']} | "
+                      f"{row['held']} | {row['nlps']} ({row['min_nlps']}) | "
                       f"{row['cpu']:.1f} | {row['lift']:.2f} |", flush=True)
     base = args.variants[0]
     print(f"\nCPU ratio against {base} (mean over seeds):")
