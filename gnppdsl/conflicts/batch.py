@@ -57,19 +57,7 @@ EAGER_SHARE = 0.5
 of the CPU time its plan's attempt has cost; the rest are queued (`Batcher.pending`). Why: where
 a loop iteration is dear and candidates cheap (lab5_paper: 5-8 s per plan, 0.05-0.1 s per
 candidate) the eager batch saved plans; where candidates cost as much as a plan (field2:
-0.25-0.4 s each with restarts, ~1 s per plan) it only added NLPs.
-
-Only renamings that keep the conflict within the objects its plan uses are decided at once: a
-renaming of an object the plan names (an argument of one of its actions) onto one it does not
-name (`Candidate.outside`) is queued, decided when a plan holds it; an object the plan does not
-name (an obstacle in a reach conflict) renamed onto another is still decided at once. The gate
-is structural, so the path does not depend on the machine's load. Why: the eager candidates
-that spared plans rename the plan's own blocks, arms and pads onto each other and obstacles onto
-obstacles (lab4_paper, lab5_paper: o1 onto o2 with the pads; queuing that renaming too cost
-both a plan more, 5 -> 6); on the field rows most eager candidates renamed a place of the plan
-onto places no plan went to (field2 plan 3: site_b onto site_c, station_n, station_s), and with
-every candidate queued the same plans were found with fewer NLPs (field2 seed 0: 8 plans both,
-55 -> 42 NLPs, 5.6 -> 3.5 s CPU)."""
+0.25-0.4 s each with restarts, ~1 s per plan) it only added NLPs."""
 
 FACTORY_FACTOR = 4
 """Renamings built with the factory per conflict, at most FACTORY_FACTOR * budget (a renaming
@@ -93,7 +81,6 @@ class Candidate:
     conflict: Conflict                            # to_partial_states(π(M))
     key: tuple                                    # identity of π(M) for the cache
     subtype: bool = False                         # π renames an object onto one of a subtype
-    outside: bool = False                         # π renames onto an object the plan does not use
 
 
 class Reachable:
@@ -127,7 +114,7 @@ class Batcher:
     lazy: bool = False                            # queue candidates until a plan holds one (`pending`)
     pending: list = field(default_factory=list)   # lazy: (origin, Candidate), not decided yet
     origins: int = 0                              # lazy: conflicts whose candidates were queued
-    deferred: list = field(default_factory=list)  # lazy: taken from the iterator, not decided (`Run.batch`)
+    deferred: Candidate | None = None             # lazy: taken from the iterator, not decided (`Run.batch`)
     subtype: Callable[[str, str], bool] | None = None   # (type, type) -> is the first a subtype of the
                                                   # second (`Domain.is_subtype`); None: same types only
 
@@ -185,9 +172,7 @@ class Batcher:
         position of an action: the blocks it picks, not those it stacks onto) first, then onto
         other objects of the plan, then the rest, each by name. Each with an image (`Lifter.image`) and facts; at most
         FACTORY_FACTOR * budget factory calls. Renamings onto objects of a subtype come after
-        all the others (`Candidate.subtype`); a renaming onto an object no action of the plan
-        names, of an object the plan names, is marked (`Candidate.outside`: the lazy batch queues it,
-        `EAGER_SHARE`). `lifted`: object -> the objects lifting renamed
+        all the others (`Candidate.subtype`). `lifted`: object -> the objects lifting renamed
         it onto (`Lifter.renamable`); an object lifted onto every other object of its type is
         not renamed (the caller lifts each learned candidate, which covers those renamings)."""
         window, shifted = self.lifter.window(states, factors)
@@ -233,8 +218,7 @@ class Batcher:
                 self.stats.unreachable += 1
                 continue                          # no plan holds it: nothing to learn
             key = (seq, frozenset((f.rule, f.template, f.bindings, f.step) for f in image))
-            yield Candidate(mapping, tuple(image), tuple(renamed), seq, key, onto_sub(mapping),
-                            any(o in roles and c not in roles for o, c in mapping))
+            yield Candidate(mapping, tuple(image), tuple(renamed), seq, key, onto_sub(mapping))
 
 
 def subsumed(seq: Conflict, known: Sequence[Conflict]) -> bool:

@@ -61,13 +61,12 @@ class BatchLearning:
             if self.batch_origin is not None:     # the planner tries these renamings: decide them
                 out = self.decide_candidates(iter(self.batcher.siblings(self.batch_origin)), known)
             # the first candidates (the likeliest: `Batcher.candidates` order) decided now, for
-            # at most EAGER_SHARE of the CPU the plan that gave the conflict has cost so far;
-            # renamings of its objects onto objects it does not name only queued (`Candidate.outside`)
+            # at most EAGER_SHARE of the CPU the plan that gave the conflict has cost so far
             spent = time.process_time() - self.attempt_cpu
-            self.batcher.deferred = []
+            self.batcher.deferred = None
             out += self.decide_candidates(cands, known, cpu_limit=EAGER_SHARE * spent)
-            deferred, self.batcher.deferred = self.batcher.deferred, []
-            self.batcher.queue(itertools.chain(deferred, cands), known)
+            deferred = self.batcher.deferred
+            self.batcher.queue(cands if deferred is None else itertools.chain([deferred], cands), known)
             return out
         finally:
             self.batcher.stats.time += time.perf_counter() - t0
@@ -77,19 +76,14 @@ class BatchLearning:
         """The infeasible candidates among `cands` (at most `batch_conflicts` NLPs), each with
         its symmetric instances (`Lifter`: the same NLP, no solve); `known` grows by them.
         `cpu_limit`: stop after the candidate that reaches that many CPU seconds, or at the first
-        renaming onto a subtype (`Candidate.subtype`; the others stay in the iterator); a renaming
-        of an object of the plan onto one it does not name (`Candidate.outside`) is passed over.
-        Both are left to the caller in `Batcher.deferred`."""
+        renaming onto a subtype (`Candidate.subtype`; the others stay in the iterator)."""
         stats, out, solved = self.batcher.stats, [], 0
         cpu0 = time.process_time()
         for cand in cands:
-            if cpu_limit is not None and cand.outside and not cand.subtype:
-                self.batcher.deferred.append(cand)     # not decided: queued by the caller
-                continue
             if cpu_limit is not None and (cand.subtype or time.process_time() - cpu0 >= cpu_limit):
                 # (a renaming onto a subtype is only queued: on lab4_paper deciding them at once
                 # cost 21 more candidate NLPs and saved no plan)
-                self.batcher.deferred.append(cand)     # not decided: queued by the caller
+                self.batcher.deferred = cand      # not decided: queued by the caller
                 break
             if subsumed(cand.conflict, known):
                 continue                   # forbidden already: nothing to learn
