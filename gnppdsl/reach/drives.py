@@ -224,6 +224,17 @@ def drive_waypoints(travel: TravelMap, qa, qb, n: int):
     return out
 
 
+def _ring_layer(target: Sequence[float], obstacles, lo, hi, radius: float, footprint: Footprint | None):
+    """The free ring points around `target` (`_ring_points`) as ((n, 2) positions, (n,) ring
+    penalties: RING_WEIGHT x the metres beyond the innermost ring), n = 0 when none is free.
+    Shared by `plan_bases`' chain and `pair_drives`' pairs, so both price a point alike."""
+    import numpy as np
+
+    pts = _ring_points(target, obstacles, lo, hi, radius, footprint=footprint)
+    return (np.asarray([(x, y) for x, y, _ in pts], float).reshape(-1, 2),
+            np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts], float))
+
+
 def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstacles,
                lo: Sequence[float] | None = None, hi: Sequence[float] | None = None,
                radius: float = BASE_RADIUS, footprint: Footprint | None = None) -> list[list[float] | None]:
@@ -238,10 +249,9 @@ def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstac
     travel = TravelMap(obstacles, radius, lo, hi)
     layers = []                           # (target index, points (n, 2), their ring penalties)
     for i, t in enumerate(targets):
-        pts = _ring_points(t, obstacles, lo, hi, radius, footprint=footprint)
-        if pts:
-            layers.append((i, np.asarray([(x, y) for x, y, _ in pts], float),
-                           np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts])))
+        pts, pen = _ring_layer(t, obstacles, lo, hi, radius, footprint)
+        if len(pts):
+            layers.append((i, pts, pen))
     out: list = [None] * len(targets)
     if not layers:
         return out
@@ -262,31 +272,31 @@ def plan_bases(targets: Sequence[Sequence[float]], home: Sequence[float], obstac
 
 def pair_drives(targets, home: Sequence[float], obstacles, lo: Sequence[float] | None = None,
                 hi: Sequence[float] | None = None, radius: float = BASE_RADIUS,
-                footprint: Footprint | None = None) -> dict:
+                footprint: Footprint | None = None, travel: TravelMap | None = None) -> dict:
     """R-LGP's base drive between consecutive picks and puts, for the planner's pair costs:
     `targets` maps an operator to its target (x, y, ...); the result maps (prev, op) to the least
     drive (m, `TravelMap`) from a free ring point of prev's target to one of op's, plus the ring
     penalty of the point reached (RING_WEIGHT, as `plan_bases`), and (None, op) to the least
     drive from home. A target without a free ring point has no entries. Per pair the two ends
     are chosen independently, so the sum over a plan is a lower bound of `plan_bases`' chain.
-    Targets are compared by position: a target shared by many operators is computed once."""
+    Targets are compared by position: a target shared by many operators is computed once.
+    `travel`: the caller's `TravelMap` of the same obstacles, radius and bounds (built here when
+    None)."""
     import numpy as np
 
-    travel = TravelMap(obstacles, radius, lo, hi)
+    travel = travel if travel is not None else TravelMap(obstacles, radius, lo, hi)
     points: dict = {}                     # rounded (x, y) -> (ring points (n, 2), penalties (n,))
     key_of: dict = {}
     for op, t in targets.items():
         key = (round(float(t[0]), 6), round(float(t[1]), 6))
         key_of[op] = key
         if key not in points:
-            pts = _ring_points(t, obstacles, lo, hi, radius, footprint=footprint)
-            points[key] = (np.asarray([(x, y) for x, y, _ in pts], float).reshape(-1, 2),
-                           np.asarray([RING_WEIGHT * (RADII[k // ANGLES] - RADII[0]) for *_, k in pts]))
+            points[key] = _ring_layer(t, obstacles, lo, hi, radius, footprint)
     keys = [k for k in points if len(points[k][0])]
-    start = [np.asarray(home[:2], float).reshape(1, 2)]
+    home_xy = np.asarray(home[:2], float).reshape(1, 2)
     drive: dict = {}
     for a in [None] + keys:
-        A = start[0] if a is None else points[a][0]
+        A = home_xy if a is None else points[a][0]
         for b in keys:
             B, pen = points[b]
             drive[(a, b)] = float((travel.distances(A, B) + pen[None, :]).min())

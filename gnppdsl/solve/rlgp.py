@@ -120,14 +120,14 @@ class ReachabilityCosts:
         from gnppdsl.reach.drives import pair_drives
         from gnppdsl.reach.integration import DEFAULT_SCALE, operator_targets
 
-        if self._travel_map(block.robot) is None:
+        travel = self._travel_map(block.robot)
+        if travel is None:
             return {}
         problem = self.compiled.problem
         spec = problem.scene.robots[block.robot]
-        obstacles = [o for o in problem.scene.static_obstacles(problem.objects).values() if len(o.pose) >= 7]
-        drives = pair_drives(operator_targets(problem, task, block), spec.home, obstacles,
+        drives = pair_drives(operator_targets(problem, task, block), spec.home, self._base_obstacles(),
                              spec.attributes.get("base_min"), spec.attributes.get("base_max"),
-                             radius=base_radius(spec), footprint=base_footprint(spec))
+                             radius=base_radius(spec), footprint=base_footprint(spec), travel=travel)
         return {pair: int(round(DRIVE_WEIGHT * DEFAULT_SCALE * d)) for pair, d in drives.items()
                 if np.isfinite(d) and round(DRIVE_WEIGHT * DEFAULT_SCALE * d)}
 
@@ -220,11 +220,15 @@ class ReachabilityCosts:
             if spec is None or spec.attributes.get("base_joint") != "planar" or len(spec.home) < 3:
                 cache[robot] = None
             else:
-                obstacles = [o for o in scene.static_obstacles(self.compiled.problem.objects).values()
-                             if len(o.pose) >= 7]
-                cache[robot] = TravelMap(obstacles, base_radius(spec), spec.attributes.get("base_min"),
-                                         spec.attributes.get("base_max"))
+                cache[robot] = TravelMap(self._base_obstacles(), base_radius(spec),
+                                         spec.attributes.get("base_min"), spec.attributes.get("base_max"))
         return cache[robot]
+
+    def _base_obstacles(self) -> list:
+        """The scene's static obstacles with a full pose: what a planar base drives round
+        (`_travel_map`, `_drive_pair_costs`)."""
+        problem = self.compiled.problem
+        return [o for o in problem.scene.static_obstacles(problem.objects).values() if len(o.pose) >= 7]
 
     def _detour(self, robot: str, rows: np.ndarray) -> bool:
         """Does the graph path `rows` drive the base more than DETOUR times the base's shortest
