@@ -26,6 +26,7 @@ interleaved) that the verified solution's states contain, read from the result's
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
@@ -64,18 +65,12 @@ def kind(conflict) -> str:
 
 def kinds(conflicts) -> dict[str, int]:
     """Learned conflicts per kind (`kind`)."""
-    out: dict[str, int] = {}
-    for c in conflicts:
-        out[kind(c)] = out.get(kind(c), 0) + 1
-    return out
+    return dict(Counter(kind(c) for c in conflicts))
 
 
 def found(conflicts) -> str:
     """How the conflicts were found: `n3 b1` = three by the loop's NLP search, one by a batch hit."""
-    counts: dict[str, int] = {}
-    for c in conflicts:
-        counts[c.source[:1]] = counts.get(c.source[:1], 0) + 1
-    return " ".join(f"{k}{v}" for k, v in sorted(counts.items()))
+    return " ".join(f"{k}{v}" for k, v in sorted(Counter(c.source[:1] for c in conflicts).items()))
 
 
 def _facts(text: str) -> frozenset[str]:
