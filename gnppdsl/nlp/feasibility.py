@@ -784,6 +784,14 @@ class FeasibilitySolver:
         budget = self.options.iteration_budget
         left = lambda: {"limit": budget - iters} if budget else {}      # noqa: E731  (`_run`)
         spent = lambda: bool(budget) and iters >= budget     # noqa: E731
+
+        def capped(trial: bool) -> dict:
+            """`left()`, and a linearised run of "auto" at most `trial_iterations`."""
+            cap = left()
+            if trial and self.options.trial_iterations > 0:
+                cap = {"limit": min(cap.get("limit", self.options.trial_iterations),
+                                    self.options.trial_iterations)}
+            return cap
         k, last, undefined_left = first_attempt - 1, max(0, self.options.restarts), UNDEFINED_RESTARTS
         while k < last:
             k += 1
@@ -800,7 +808,7 @@ class FeasibilitySolver:
                 # from the same start they already failed)
                 self._project = b is a
                 try:
-                    x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **left())
+                    x, slack, it, status, lam = self._run(b, x0, self.options.regularisation, **capped(trial))
                 finally:
                     self._project = True
                 iters += it
@@ -809,7 +817,7 @@ class FeasibilitySolver:
                 mine = (values, per, worst, slack, status, x, lam), False, False
                 if tol < worst <= self.options.polish_below and self.options.polish and not spent():
                     x, slack, it, status, lam = self._run(b, x, self.options.regularisation * 1e-4, lam,
-                                                          **left())
+                                                          **capped(trial))
                     iters += it
                     values, per, worst = self._verdict(b, x)
                     # not better: the same unpolished point, whose polish must not run again

@@ -79,6 +79,16 @@ class SolverOptions:
                                    # whose linearised runs all failed, the solvers sharing the
                                    # record (`CurvatureTrials`: one loop) run only the exact
                                    # Hessian; 0: never give up
+    trial_iterations: int = 50     # kinematic_curvature "auto": a linearised run (and its
+                                   # polish) stops after this many ipopt iterations and the
+                                   # exact run from the same start decides; 0: no cap. Why:
+                                   # the linearised runs that end feasible do so in 17-31
+                                   # iterations (bench_komo's keyframe NLP, 20 seeds; lab2),
+                                   # the ones that fail stall after 75-210 (each Lab row,
+                                   # work2, field3: 2 per solve before `trial_patience` gives
+                                   # up; lab5_paper 210 + 178 iterations, 4.2 s CPU), where
+                                   # the exact run then takes 21-56. A capped run is never a
+                                   # verdict: the exact run always follows
 
     def nlpsol_options(self) -> dict:
         if self.plugin == "sqpmethod":

@@ -30,11 +30,11 @@ def _stall_linearised(monkeypatch) -> list:
         a = assemble(self, graph)
         return a if self.kinematic_exact else replace(a, linearised=True)
 
-    def run_(self, a, x0, rho, warm=None):
+    def run_(self, a, x0, rho, warm=None, limit=0):
         if a.linearised:
             stalls.append(a.n_x)
             return x0.copy(), 1.0, 0, "stub: linearised run stalled", None
-        return run(self, a, x0, rho, warm)
+        return run(self, a, x0, rho, warm, limit)
 
     monkeypatch.setattr(FeasibilitySolver, "assemble", assemble_)
     monkeypatch.setattr(FeasibilitySolver, "_run", run_)
