@@ -18,6 +18,7 @@ import numpy as np
 
 from gnppdsl.errors import UserError
 from gnppdsl.geometry.distance import (ConvexBody, WitnessCallback, se2_to_matrix, se2_to_rp, signed_distance,
+                                       signed_distance_at,
                                        signed_distance_expr)
 from gnppdsl.geometry.features import N_OUT, model_expression
 from gnppdsl.geometry.kinematics import FrameChain, fk_function, fk_rp_function, fn_name, quat_to_rotation
@@ -307,8 +308,7 @@ class GeometryContext:
         return T.copy()
 
     def sdist_numeric(self, body_a: Any, pose_a: np.ndarray, body_b: Any, pose_b: np.ndarray) -> float:
-        Ta, Tb = se3_to_matrix(pose_a), se3_to_matrix(pose_b)
-        return signed_distance(self.body(body_a), Ta[:3, :3], Ta[:3, 3], self.body(body_b), Tb[:3, :3], Tb[:3, 3])
+        return signed_distance_at(self.body(body_a), pose_a, self.body(body_b), pose_b)
 
     def sdist2_numeric(self, body_a: Any, pose_a: np.ndarray, body_b: Any, pose_b: np.ndarray) -> float:
         Ta, Tb = se2_to_matrix(pose_a), se2_to_matrix(pose_b)
