@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 from gnppdsl.compile.sas import PartialState
 from gnppdsl.ir.model import Problem
 from gnppdsl.solve.compiled import Compiled, compile_problem, load_and_compile
-from gnppdsl import interrupt
+from gnppdsl import collector, interrupt
 from gnppdsl.solve.deadline import TimeUp
 from gnppdsl.solve.feasibility_check import FeasibilityCheck
 from gnppdsl.solve.options import Progress, SolveOptions
@@ -138,7 +138,8 @@ def solve_compiled(compiled: Compiled, options: SolveOptions | None = None,
                    progress: Progress | None = None) -> Result:
     """Solve an already compiled problem (a fresh planner, solver caches and database per call)."""
     options = (options or SolveOptions.from_settings(getattr(compiled.problem, "settings", None))).validated()
-    result = Loop(compiled, options, progress).solve()
+    with collector.solving():             # fewer passes of the cyclic collector (collector.py)
+        result = Loop(compiled, options, progress).solve()
     annotate_motion(result, compiled)      # joint names, time stamps, world poses (timing.py)
     return result
 
