@@ -249,6 +249,28 @@ def _single_placement(body: "ConvexBody") -> tuple | None:
     return pl[0]
 
 
+_PLACED: dict[tuple, tuple] = {}
+_PLACED_MAX = 4096
+
+
+def _placed_at(body: "ConvexBody", pose):
+    """The coal transform of a single-shape body's shape at an SE3 pose, remembered for the
+    last _PLACED_MAX (body, pose) pairs (by the pose's exact bytes; the body is held, so its id
+    stays its own). Why: the checker asks each pose against many bodies (a link at one waypoint
+    against every object, a resting object against every link), and building the transform
+    is ~2/3 of a query's Python time (lab5_paper, py-spy)."""
+    x = np.asarray(pose, dtype=float).ravel()[:7]
+    key = (id(body), x.tobytes())
+    hit = _PLACED.get(key)
+    if hit is not None and hit[0] is body:
+        return hit[1]
+    T = _shape_transform(*_pose_floats(x), _single_placement(body))
+    if len(_PLACED) >= _PLACED_MAX:
+        _PLACED.clear()
+    _PLACED[key] = (body, T)
+    return T
+
+
 def signed_distance_at(body_a: ConvexBody, pose_a, body_b: ConvexBody, pose_b) -> float:
     """`signed_distance` of two bodies at SE3 7-vector poses: the numeric checker's query
     (`GeometryContext.sdist_numeric`). Why its own path: a query of two single-shape bodies
@@ -264,8 +286,7 @@ def signed_distance_at(body_a: ConvexBody, pose_a, body_b: ConvexBody, pose_b) -
     if _REQ is None:
         _REQ = _request()
     sa, sb = body_a.shapes[0], body_b.shapes[0]
-    Ta = _shape_transform(*_pose_floats(pose_a), _single_placement(body_a))
-    Tb = _shape_transform(*_pose_floats(pose_b), _single_placement(body_b))
+    Ta, Tb = _placed_at(body_a, pose_a), _placed_at(body_b, pose_b)
     res = coal.DistanceResult()
     d = coal.distance(sa, Ta, sb, Tb, _REQ, res)
     if not (abs(d) < _FAILED):               # coal's failure value (`_FAILED`): ask again

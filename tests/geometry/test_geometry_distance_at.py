@@ -51,3 +51,24 @@ def test_signed_distance_at_equals_the_matrix_path():
     pa, pb = np.r_[0.0, 0, 0.3, 0, 0, 0, 1], np.r_[0.05, 0, 0.1, 0, 0, 0.3, 0.95]
     assert ctx.sdist_numeric(("link", "left", links[3]), pa, "box", pb) == \
         D.signed_distance_at(ctx.body(("link", "left", links[3])), pa, ctx.body("box"), pb)
+
+
+def test_placed_transforms_are_remembered_per_body_and_pose():
+    """A pose asked again for the same body reuses its coal transform (`_placed_at`); another
+    body at the same pose, or the same body at another pose, gets its own."""
+    ctx = _ctx()
+    box, ball = ctx.body("box"), ctx.body("ball")
+    M = se3_to_matrix(np.r_[0.1, -0.05, 0.2, 0.2, -0.3, 0.1, 0.9])
+    placed = D.ConvexBody("placed", [ctx.body("cyl").shapes[0]], [M])
+    pa = np.r_[0.3, 0.1, 0.2, 0.1, 0.2, 0.3, 0.9]
+    T1 = D._placed_at(box, pa)
+    assert D._placed_at(box, pa.copy()) is T1
+    assert D._placed_at(ball, pa) is not T1
+    assert D._placed_at(box, pa + 1e-9) is not T1
+    T2 = D._placed_at(placed, pa)
+    R, p = se3_to_matrix(pa)[:3, :3], se3_to_matrix(pa)[:3, 3]
+    np.testing.assert_allclose(np.asarray(T2.getRotation()), R @ M[:3, :3], atol=1e-15)
+    np.testing.assert_allclose(np.asarray(T2.getTranslation()), R @ M[:3, 3] + p, atol=1e-15)
+    d = D.signed_distance_at(box, pa, placed, np.r_[0.0, 0, 0, 0, 0, 0, 1])
+    assert d == D.signed_distance_at(box, pa, placed, np.r_[0.0, 0, 0, 0, 0, 0, 1])     # from the memo
+    assert abs(d - _matrix_path(box, pa, placed, np.r_[0.0, 0, 0, 0, 0, 0, 1])) <= 1e-12
