@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from gnppdsl.geometry.features import N_OUT, feature_list, feature_model, model_expression, placement_floats
+from gnppdsl.geometry.features import (N_OUT, feature_list, feature_model, model_expression, placement_floats,
+                                       pose_floats)
 
 
 @dataclass
@@ -215,20 +216,9 @@ def signed_distance(body_a: ConvexBody, RA, pA, body_b: ConvexBody, RB, pB) -> f
     return float(best)
 
 
-def _pose_floats(pose) -> tuple:
-    """(rotation rows, translation) of an SE3 7-vector [x, y, z, qx, qy, qz, qw] in plain
-    floats (quaternion normalised; the formulas of `robots.se3_to_matrix`)."""
-    px, py, pz, x, y, z, w = np.asarray(pose, dtype=float).ravel()[:7].tolist()
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return ((1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
-            (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
-            (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y))), (px, py, pz)
-
-
 def _shape_transform(R: tuple, p: tuple, placement: tuple | None):
     """coal transform of a shape at `placement` ((rotation rows, translation) in floats; None:
-    the identity) in a body at (R, p) (`_pose_floats`): R M_R and R M_p + p in plain floats."""
+    the identity) in a body at (R, p) (`features.pose_floats`): R M_R and R M_p + p in plain floats."""
     import coal
     if placement is not None:
         (m0, m1, m2), t = placement
@@ -243,9 +233,8 @@ def _single_placement(body: "ConvexBody") -> tuple | None:
     computed once per body."""
     pl = body._spheres.get("placement")
     if pl is None:
-        M = body.placements[0]
-        pl = body._spheres["placement"] = (None if body.identity()[0] else
-                                           (tuple(map(tuple, M[:3, :3].tolist())), tuple(M[:3, 3].tolist())),)
+        R, t, identity = placement_floats(body.placements[0])
+        pl = body._spheres["placement"] = (None if identity else (R, t),)
     return pl[0]
 
 
@@ -264,7 +253,7 @@ def _placed_at(body: "ConvexBody", pose):
     hit = _PLACED.get(key)
     if hit is not None and hit[0] is body:
         return hit[1]
-    T = _shape_transform(*_pose_floats(x), _single_placement(body))
+    T = _shape_transform(*pose_floats(x), _single_placement(body))
     if len(_PLACED) >= _PLACED_MAX:
         _PLACED.clear()
     _PLACED[key] = (body, T)
@@ -281,8 +270,8 @@ def signed_distance_at(body_a: ConvexBody, pose_a, body_b: ConvexBody, pose_b) -
     import coal
     global _REQ
     if len(body_a.shapes) != 1 or len(body_b.shapes) != 1:
-        Ta, Tb = se3_matrix(pose_a), se3_matrix(pose_b)
-        return signed_distance(body_a, Ta[:3, :3], Ta[:3, 3], body_b, Tb[:3, :3], Tb[:3, 3])
+        (Ra, pa), (Rb, pb) = pose_floats(pose_a), pose_floats(pose_b)
+        return signed_distance(body_a, np.array(Ra), np.array(pa), body_b, np.array(Rb), np.array(pb))
     if _REQ is None:
         _REQ = _request()
     sa, sb = body_a.shapes[0], body_b.shapes[0]
@@ -293,15 +282,6 @@ def signed_distance_at(body_a: ConvexBody, pose_a, body_b: ConvexBody, pose_b) -
         q = robust_query(sa, Ta, sb, Tb, (d, res))
         d = q[0] if q is not None else 0.0   # failing every way: touching
     return float(d)
-
-
-def se3_matrix(pose) -> np.ndarray:
-    """4x4 of an SE3 7-vector (`_pose_floats`)."""
-    R, p = _pose_floats(pose)
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = p
-    return T
 
 
 class WitnessCallback(ca.Callback):

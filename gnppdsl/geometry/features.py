@@ -200,6 +200,18 @@ def feature_model(shape_a, Ma, shape_b, Mb, RA, pA, RB, pB, d, n, wa, wb, planar
                                  wa.tolist(), wb.tolist(), planar))
 
 
+def pose_floats(pose) -> tuple:
+    """(rotation rows, translation) of an SE3 7-vector [x, y, z, qx, qy, qz, qw] in plain floats,
+    the quaternion normalised: the one formula of `robots.se3_to_matrix` and the numeric
+    checker's query (`distance.signed_distance_at`), which compose poses without numpy."""
+    px, py, pz, x, y, z, w = np.asarray(pose, dtype=float).ravel()[:7].tolist()
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return ((1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+            (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
+            (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y))), (px, py, pz)
+
+
 def placement_floats(M: np.ndarray) -> tuple:
     """(rotation rows, translation, is identity) of a 4x4 shape placement in plain floats, the
     form `feature_list` takes (callers with fixed placements compute it once)."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gnppdsl.errors import UserError
+from gnppdsl.geometry.features import pose_floats
 from gnppdsl.geometry.shapes import convex_from_points, shape_vertices
 from gnppdsl.ir.robot_files import default_locked, resolve_model_files, robot_data_share
 from gnppdsl.ir.scene_model import SceneRobot
@@ -195,13 +196,11 @@ def se3_to_matrix(pose) -> np.ndarray:
     On Python floats and one array construction: the numeric checker converts every pose of
     every distance query (lab5: 44k per solve), where numpy's per-element arithmetic and
     `np.eye` cost 16 us a call against ~3 us."""
-    px, py, pz, x, y, z, w = np.asarray(pose, dtype=float).ravel()[:7].tolist()
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
+    (r0, r1, r2), (px, py, pz) = pose_floats(pose)
     return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w), px],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w), py],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y), pz],
+        [*r0, px],
+        [*r1, py],
+        [*r2, pz],
         [0.0, 0.0, 0.0, 1.0],
     ])
 
