@@ -67,6 +67,26 @@ link too: the three arguments above use of `x[s] == x'[s]` only reflexivity (con
 merging) and transitivity (stretching). Off by default: on Work_5 (seed 0) the preorder runs'
 217 instances took clingo's calls from 2.5 to 155 s CPU (docs/design.md, "Stretched conflicts").
 
+Stutters (a kinematic switch across the stretched transition): Field_3 learned "mm picks o1 at
+site_a and places it on station_n, parked in between" as <p_0, p_1, p_2>, then again with the
+arm1's pick of o2 between the pick and the place (p_1 twice), each a whole loop iteration. The
+place's factor `kin_switch_rel` crosses 1 -> 2, so the transition is no chain link; but it reads
+at step 1 only o1's pose relative to the hand, and a repeated state p_1 -> p_1 carries that
+variable whole (`stay`: `pose(o) == pose(o)'`). So a transition j -> j+1 is stretched too when
+every factor of M crossing it is a chain link at j or a transition factor at j (steps j and j+1
+only) whose variables at step j are each carried whole (`x == x'`, same dimension and bounds)
+by a chain equality the factory builds on the transition s_j -> s_j of the plan's full state s_j
+(`Stutter`, passed by the caller; only M itself, whose steps are the plan's, is asked). Its
+bridge B_j holds the generators of the chain links used (both partial states) and the crossing
+factors' partial states at j; a stretched instance is <.., p_j + B_j, B_j, .., B_j, p_{j+1}, ..>
+(p_j takes B_j's facts: the links' generators must hold at j). Soundness: a plan holding it
+holds the links' copies along j, y_1, .., y_d, M's chain links across j as copies (as above),
+and each crossing factor f at y_d -> y_d + 1 = j+1 (its partial states hold there; Property 4.2).
+From a solution of that subgraph take M's values at its own steps: every factor not crossing j
+reads what it reads there; f read at step j only variables equal along j, y_1, .., y_d by the
+links (transitivity), so f at j -> j+1 holds as it does at y_d -> j+1; the chain links of M
+across j hold by transitivity. So M would be feasible: M is infeasible, so is the plan's graph.
+
 Cost: no NLP; the instances of each length are one lifted constraint for the planner. At most
 `limit` instances per conflict, no longer than `max_length` states (the planner's horizon + 1),
 shortest first.
@@ -74,7 +94,7 @@ shortest first.
 from __future__ import annotations
 
 import itertools
-from typing import Sequence
+from typing import Callable, Sequence
 
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.compile.sas import PartialState
@@ -82,6 +102,10 @@ from gnppdsl.conflicts.mapping import step_range, to_partial_states
 from gnppdsl.ir.expr import Constraint, Index, Num, Slot
 
 Conflict = tuple[PartialState, ...]
+
+Stutter = Callable[[int], Sequence[FactorInstance]]
+"""The chain links (`chain_link`) the factory builds on the transition s_j -> s_j of a conflict's
+plan state at step j (module docstring, "Stutters"), at steps j, j+1."""
 
 LIMIT = 64
 """Stretched instances per conflict (the original included)."""
@@ -147,13 +171,21 @@ def chain_link(f: FactorInstance, preorder: bool = False) -> bool:
     return chain_equality(f) or (preorder and preorder_link(f))
 
 
-def bridges(factors: Sequence[FactorInstance], preorder: bool = False) -> list[PartialState | None]:
+def bridges(factors: Sequence[FactorInstance], preorder: bool = False,
+            stutter: Stutter | None = None) -> list[PartialState | None]:
     """Per transition j -> j+1 of the conflict of `factors` (relative steps), its bridge B_j
-    when stretchable (module docstring; chain links as `chain_link(f, preorder)`), else None."""
+    when stretchable (module docstring; chain links as `chain_link(f, preorder)`), else None.
+    `stutter`: the chain links of a repeated state at a step (module docstring, "Stutters"),
+    for the transitions a kinematic switch crosses."""
     factors = list(factors)
     first, last = step_range(factors)
     out: list[PartialState | None] = []
     for j in range(first, last):
+        if stutter is not None:
+            b = _stutter_bridge(factors, j, stutter, preorder)
+            if b is not None:
+                out.append(b)
+                continue
         facts: dict[int, int] = {}
         ok = True
         for f in factors:
@@ -172,6 +204,57 @@ def bridges(factors: Sequence[FactorInstance], preorder: bool = False) -> list[P
                         ok = False
         out.append(PartialState.of(facts) if ok else None)
     return out
+
+
+def _full_equality(g: FactorInstance) -> bool:
+    """Is `g` a chain equality of its whole variable (`x == x'`, no component range)?"""
+    if not chain_equality(g):
+        return False
+    dim = g.variables[0].dim
+    return any(_slot_range(c.lhs)[1] in ((), (0, dim)) for c in g.body)
+
+
+def _stutter_bridge(factors: Sequence[FactorInstance], j: int, stutter: Stutter,
+                    preorder: bool) -> PartialState | None:
+    """The bridge of transition j -> j+1 that factors other than chain links cross (module
+    docstring, "Stutters"), or None: every crossing factor is a chain link at j or a transition
+    factor at j whose variables at step j are each carried whole by a chain equality of a
+    repeated state j (`stutter(j)`, the factory's); the bridge holds the generators of the
+    chain links used and the crossing factors' partial states at j."""
+    facts: dict[int, int] = {}
+    need: dict = {}
+    crossed = False
+
+    def add(p: PartialState) -> bool:
+        return all(facts.setdefault(var, val) == val for var, val in p.facts)
+
+    for f in factors:
+        if any(v.waypoints and v.step == j for v in f.variables):
+            return None                                  # a motion j -> j+1 is part of M
+        steps = _steps(f)
+        if not (min(steps) <= j < max(steps)):
+            continue
+        if f.step != j or len(f.generator) != 2 or not steps <= {j, j + 1}:
+            return None
+        if chain_link(f, preorder):
+            if not all(add(p) for p in f.generator):
+                return None
+            continue
+        crossed = True
+        if not add(f.generator[0]):
+            return None
+        for v in f.variables:
+            if v.step == j:
+                need[v.key] = v
+    if not crossed:
+        return None                                      # chain links only: `bridges` as before
+    links = stutter(j)
+    for key, v in need.items():
+        link = next((g for g in links if g.step == j and _full_equality(g) and g.variables[0].key == key
+                     and _same_variable(g.variables[0], v)), None)
+        if link is None or not all(add(p) for p in link.generator):
+            return None
+    return PartialState.of(facts)
 
 
 def _key(f: FactorInstance) -> tuple:
@@ -257,20 +340,28 @@ def _steps(f: FactorInstance) -> set[int]:
 
 
 def stretched(factors: Sequence[FactorInstance], max_length: int, limit: int = LIMIT,
-              preorder: bool = False) -> list[Conflict]:
+              preorder: bool = False, stutter: Stutter | None = None) -> list[Conflict]:
     """The conflict of `factors`, then the instances of M contracted (`contracted`), with its
     runs shortened (`merged`) and stretched (module docstring): each at most `max_length`
     partial states long, shortest first, at most `limit` in all (duplicates counted once).
-    `preorder`: PREORDER transitions are chain links too."""
+    `preorder`: PREORDER transitions are chain links too. `stutter`: the chain links of a
+    repeated state at a step of `factors` (module docstring, "Stutters"; only M itself, not
+    its contracted or merged forms, has steps of the plan the links are built on)."""
     out = [to_partial_states(factors)]
     seen = set(out)
     shapes = []
+    whole = tuple(factors)
     for m in merged(contracted(factors, preorder), preorder):
         seq = to_partial_states(m)
         bridge = bridges(m, preorder)
-        shapes.append((seq, bridge, [j for j, b in enumerate(bridge) if b is not None]))
-    for length in range(min(len(seq) for seq, _, _ in shapes), max_length + 1):
-        for seq, bridge, spots in shapes:
+        grown: set[int] = set()         # stutter spots: p_j takes the bridge's facts too
+        if stutter is not None and m == whole:
+            plain = bridge
+            bridge = bridges(m, preorder, stutter)
+            grown = {j for j, b in enumerate(bridge) if b is not None and plain[j] is None}
+        shapes.append((seq, bridge, [j for j, b in enumerate(bridge) if b is not None], grown))
+    for length in range(min(len(seq) for seq, _, _, _ in shapes), max_length + 1):
+        for seq, bridge, spots, grown in shapes:
             extra = length - len(seq)
             if extra < 0 or (extra and not spots):
                 continue
@@ -278,9 +369,12 @@ def stretched(factors: Sequence[FactorInstance], max_length: int, limit: int = L
                 inserted = dict(zip(spots, counts))
                 inst: list[PartialState] = []
                 for j, p in enumerate(seq):
-                    inst.append(p)
-                    if j in inserted:
+                    if inserted.get(j):
+                        # a stutter's links hold at j -> y_1 only if their generators do
+                        inst.append(p.union(bridge[j]) if j in grown else p)
                         inst.extend([bridge[j]] * inserted[j])
+                    else:
+                        inst.append(p)
                 inst_t = tuple(inst)
                 if inst_t in seen:
                     continue

@@ -95,6 +95,7 @@ class Lifter:
         pattern = anonymous_graph(shifted, self.object_key)
         objs = self._conflict_objects(factors, original)
         self.images = {original: tuple(shifted)}
+        self.windows = {original: window}         # the full states each image's steps index
         choices = {o: [c for c in self.object_types if c != o and self.object_types[c] == self.object_types[o]
                        and self.object_key(c) == self.object_key(o) != "-"] for o in objs}
         valid: dict[str, list[str]] = {o: [] for o in objs}
@@ -110,6 +111,7 @@ class Lifter:
                     if inst not in out:
                         out.append(inst)
                         self.images[inst] = self._image
+                        self.windows[inst] = getattr(self, "_window", None)
         self.renamable = {o: list(v) for o, v in valid.items()}
         movable = [o for o in objs if valid[o]]
         if len(movable) >= 2:                            # then their combinations
@@ -124,6 +126,7 @@ class Lifter:
                 if inst is not None and inst not in out:
                     out.append(inst)
                     self.images[inst] = self._image
+                    self.windows[inst] = getattr(self, "_window", None)
         self.stats.candidates += checked
         self.stats.instances += len(out) - 1
         return out
@@ -258,6 +261,7 @@ class Lifter:
         if not all(p.holds_in(derived[l]) for l, p in enumerate(seq)):
             return None                              # cannot happen: generators hold where made
         self._image = tuple(image)
+        self._window = renamed
         return seq
 
     def _matched_image(self, candidates: list[FactorInstance], pattern) -> list[FactorInstance] | None:

@@ -43,6 +43,7 @@ class BatchLearning:
     attempt_cpu: float
     conflicts: list[Conflict]
     images: dict
+    windows: dict
 
     def batch(self, plan: Plan, sub_factors: Sequence[FactorInstance], instances: Sequence) -> list:
         """The conflict's renamed candidates that are infeasible (`gnppdsl.conflicts.batch`),
@@ -95,10 +96,13 @@ class BatchLearning:
                 continue
             found = [cand.conflict]
             self.images.setdefault(cand.conflict, cand.factors)
+            self.windows.setdefault(cand.conflict, cand.states)
             if self.lifter is not None:
                 found = self.lifter.instances(cand.states, cand.factors)
                 for k, v in self.lifter.images.items():
                     self.images.setdefault(k, v)
+                for k, v in self.lifter.windows.items():
+                    self.windows.setdefault(k, v)
             for seq in found:
                 if not subsumed(seq, known):
                     out.append(seq)
@@ -201,7 +205,8 @@ class BatchLearning:
             from gnppdsl.conflicts.interleave import stretched
 
             memo[cand.key] = stretched(cand.factors, self.options.max_horizon + 1,
-                                       preorder=bool(self.options.stretch_conflicts))[1:]
+                                       preorder=bool(self.options.stretch_conflicts),
+                                       stutter=self.stutter(cand.states))[1:]
         return memo[cand.key]
 
     def learn_interleaved_hit(self, plan: Plan, cand) -> None:

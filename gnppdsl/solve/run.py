@@ -94,6 +94,8 @@ class Run(ReachabilityCosts, BatchLearning):
                                    options.batch_conflicts, reachable=Reachable(self.task),
                                    lazy=options.batch_lazy, subtype=compiled.problem.domain.is_subtype)
         self.batch_origin: int | None = None   # lazy batch: the origin of the candidate being learned
+        self.stutter_memo: dict = {}            # full state -> the chain links of s -> s (`stutter`)
+        self.windows: dict = {}                 # conflict -> the full states its image's steps index
         self.batch_shapes_memo: dict = {}       # lazy batch: Candidate.key -> its interleaved instances
         self.batch_lifted_memo: dict = {}       # lazy batch: Candidate.key -> [its renamings, its lifted images]
         self.attempt_cpu = time.process_time()   # CPU clock when the current plan's attempt began
@@ -209,9 +211,11 @@ class Run(ReachabilityCosts, BatchLearning):
         t0, c0 = time.perf_counter(), _cpu()
         instances = [seq]
         self.images = {seq: tuple(sub_factors)}
+        self.windows = {seq: list(plan.states)}      # the full states the images' steps index
         if self.lifter is not None:
             instances = self.lifter.instances(plan.states, sub_factors)
             self.images.update(self.lifter.images)
+            self.windows.update(self.lifter.windows)
             self.stats.lift_time += time.perf_counter() - t0
         batched: list = []
         if self.batcher is not None and (
@@ -260,11 +264,32 @@ class Run(ReachabilityCosts, BatchLearning):
             if factors is None:
                 continue
             for inst in stretched(factors, self.options.max_horizon + 1,
-                                  preorder=bool(self.options.stretch_conflicts))[1:]:
+                                  preorder=bool(self.options.stretch_conflicts),
+                                  stutter=self.stutter(self.windows.get(s)))[1:]:
                 if inst not in have:
                     have.add(inst)
                     out.append(inst)
         return out
+
+    def stutter(self, states: Sequence[Sequence[int]] | None):
+        """`interleave.Stutter` of a conflict whose factors' steps index the full `states`: the
+        chain links the factory builds on the transition s_j -> s_j (memoised per state), at
+        steps j, j+1. None without states (the conflict is stretched as before)."""
+        if states is None:
+            return None
+        from gnppdsl.conflicts.interleave import chain_link
+
+        preorder = bool(self.options.stretch_conflicts)
+
+        def links(j: int) -> list:
+            if not 0 <= j < len(states):
+                return []
+            s = tuple(states[j])
+            if s not in self.stutter_memo:
+                self.stutter_memo[s] = [f for f in self.compiled.factory.factors([s, s])
+                                        if f.step == 0 and f.span == 2 and chain_link(f, preorder)]
+            return [f.shifted(j) for f in self.stutter_memo[s]]
+        return links
 
     def result(self, status: str, message: str, **kw: Any) -> Result:
         self.finish_stats()
