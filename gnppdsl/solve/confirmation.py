@@ -28,15 +28,6 @@ COLD_MAX_COST = 2000.0
 plain rows) of a graph that gets a start from its initial guess before it becomes a conflict."""
 
 
-COLD_ALWAYS_MAX_COST = 500.0
-"""`Confirmation.cold_refutes` on every plan (not only a `misled` one) for graphs whose ipopt
-iteration costs at most this (plain rows, as `feasibility_check.CERTIFY_MAX_COST`): one cheap
-NLP (0.1-0.2 s) per conflict. Why: work3 seed 2 learned "arm_n cannot take b2 off pad_n"
-(6 factors, cost 100) from a warm start and both restarts, and ended "no plan"; from its
-initial guess that subgraph is feasible for 7 of 8 seeds, and the plan it forbade is the
-solution of seeds 0 and 1."""
-
-
 class Confirmation(CheckMemory):
     """The feasibility check's confirmations of one-start verdicts (see the module docstring)."""
 
@@ -89,9 +80,7 @@ class Confirmation(CheckMemory):
         keyframe graphs with arms cost 2300-13000), each once per plan, and only on a plan
         where a one-start verdict has already been overturned by a restart (`misled`, set by
         `forget_unconfirmed`): there the plan's solutions are known to mislead, elsewhere the
-        start would be an NLP more per conflict (planar p5: one NLP per failed plan) -- except
-        for the cheapest graphs (COLD_ALWAYS_MAX_COST), where that NLP is cheap and a false
-        conflict is not (work3 seed 2: "no plan").
+        start would be an NLP more per conflict (planar p5: one NLP per failed plan).
 
         Why: every start of a verdict but the random ones leans on the warm start, the first
         as it is, the odd restarts the initial guess moved by `restart_noise`. On a cluttered
@@ -101,8 +90,7 @@ class Confirmation(CheckMemory):
         17-fact conflict that lifting could not generalise (~60 s of the 75 s solve); from
         the initial guess it is feasible in 0.1 s."""
         key = g.signature()
-        if key in self.cold_checked or \
-                self.solver.iteration_cost(g) > (COLD_MAX_COST if self.misled else COLD_ALWAYS_MAX_COST):
+        if not self.misled or key in self.cold_checked or self.solver.iteration_cost(g) > COLD_MAX_COST:
             return False
         self.cold_checked.add(key)
         run = self.run
