@@ -64,8 +64,10 @@ def warm_up(cells: Sequence[Cell], settings: RunSettings,
     parameter for tests)."""
     from gnppdsl.cli.sweep import preload_solver, solve_cell
 
+    from gnppdsl.nlp import jit
+
     out = WarmUp()
-    if not settings.jit:
+    if not settings.jit or jit.mode(True) == "off":      # GNPP_JIT=0: the runs compile nothing either
         return out
     todo = warm_up_cells(cells)
     if solve is None:

@@ -31,6 +31,8 @@ def _recorded(monkeypatch, csv_path: Path) -> list[tuple]:
 
 
 def test_jit_bench_warms_up_once_per_problem_and_algorithm_before_timed_runs(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("GNPP_JIT", "1")              # the suite's conftest turns jit off
+    monkeypatch.setenv("GNPP_JIT_CACHE", str(tmp_path / "jit"))
     out_csv, md = tmp_path / "runs.csv", tmp_path / "table.md"
     calls = _recorded(monkeypatch, out_csv)
     assert main(["bench", P1, P3, "--algorithms", "gnpp_trn,oneway", "--seeds", "2", "--time-limit", "60",
@@ -63,3 +65,13 @@ def test_warm_up_cells_first_of_each_file_and_algorithm():
         + [Cell("b.pntc", "rlgp", s) for s in (2, 3)]
     assert warm_up_cells(cells) == [Cell("a.pntc", "rlgp", 0, 0), Cell("a.pntc", "gnpp", 0, 0), Cell("b.pntc", "rlgp", 2)]
     assert WarmUp().note() == ""
+
+
+def test_no_warm_up_when_the_environment_turns_jit_off(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("GNPP_JIT", "0")
+    out_csv = tmp_path / "runs.csv"
+    calls = _recorded(monkeypatch, out_csv)
+    assert main(["bench", P1, "--algorithms", "gnpp_trn", "--seeds", "2", "--time-limit", "60", "--jit",
+                 "--csv", str(out_csv), "--quiet"]) == 0
+    assert len(calls) == 2                                # the timed runs only
+    assert "warm-up" not in capsys.readouterr().out
