@@ -14,8 +14,9 @@ share their templates: sort_random's instance 1 loads the 12 kernels instance 0 
 A kernel only another cell needs is still compiled by that run and counted in its CPU time
 and its CSV column `kernels_compiled` (the warm-up never hides a compile of a timed run).
 
-Measured (sort_random, R-LGP, instances 0-9, this 2-core machine under load, warm cache vs
-`--no-jit`): see docs/design.md, "R-LGP sorting time with compiled kernels".
+Measured (sort_random, R-LGP, 20 instances, `--jit` after its warm-up vs `--no-jit`, side by
+side): CPU mean 6.52 -> 5.32 s, the same plans, costs and base paths; docs/design.md, "Compiled
+kernels in `gnpp bench --jit`".
 """
 from __future__ import annotations
 
