@@ -134,3 +134,28 @@ def test_fk_matrix_memo_equals_fresh_pinocchio(ctx):
                 ref = (r.base if b is None else se3_to_matrix(b)) @ np.array(data.oMf[r.frame_id(frame)].homogeneous)
                 assert T.tobytes() == ref.tobytes()
                 T[:] = 0.0                    # must not reach the memo
+
+
+def test_fk_matrix_one_kinematics_run_per_q(ctx, monkeypatch):
+    """The frames of one q (a waypoint's collision links, asked in turn by the checker) are read
+    after one forward-kinematics run, not one per frame, with bitwise the values of a fresh
+    Data; `link_placements` (verification) moving the shared Data in between changes nothing."""
+    import pinocchio as pin
+    from gnppdsl.geometry.verify import link_placements
+    r = ctx.robot("left")
+    rng = np.random.default_rng(11)
+    qs = [rng.uniform(r.lower, r.upper) for _ in range(6)]
+    frames = ["panda_link2", "panda_link4", "panda_link7", "panda_hand"]
+    ctx.forget_evaluations()
+    runs = []
+    real = pin.framesForwardKinematics
+    monkeypatch.setattr(pin, "framesForwardKinematics", lambda *a: (runs.append(1), real(*a))[1])
+    for q in qs:
+        for frame in frames:
+            T = ctx.fk_matrix("left", q, frame)
+            link_placements(ctx, "left", qs[0] + 0.1)          # moves the verifier's Data
+            data = r.model.createData()
+            real(r.model, data, r.to_pin_q(q))
+            ref = r.base @ np.array(data.oMf[r.frame_id(frame)].homogeneous)
+            assert T.tobytes() == ref.tobytes()
+    assert len(runs) == len(qs) + 1           # one per q, and one of link_placements (memoised)
