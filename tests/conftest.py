@@ -76,8 +76,10 @@ os.environ.setdefault("GNPP_NATIVE_BUILD", "0")
 # The template Functions persisted across processes (gnppdsl.nlp.function_store) go to one
 # temporary directory per test session, not to the user's cache; tests/nlp/test_nlp_function_store.py
 # builds its stores in their own directories.
-# The same for the pre-built reachability graphs (gnppdsl.reach.persist).
-for _var, _prefix in (("GNPP_FUNCTION_CACHE", "gnpp-functions-"), ("GNPP_REACH_CACHE", "gnpp-reach-")):
+# The same for the pre-built reachability graphs (gnppdsl.reach.persist) and the compiled
+# dataclass methods (gnppdsl.classcode).
+for _var, _prefix in (("GNPP_FUNCTION_CACHE", "gnpp-functions-"), ("GNPP_REACH_CACHE", "gnpp-reach-"),
+                      ("GNPP_CODE_CACHE", "gnpp-classcode-")):
     if _var not in os.environ:
         import tempfile
         os.environ[_var] = tempfile.mkdtemp(prefix=_prefix)

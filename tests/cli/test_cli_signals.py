@@ -42,9 +42,9 @@ def test_signal_during_a_solve(tmp_path, sig, code):
 def _parser_hit_by(sig, monkeypatch):
     real = cli_main.build_parser
 
-    def build():
+    def build(*args):
         os.kill(os.getpid(), sig)                  # as if it came during the parser's imports
-        return real()
+        return real(*args)
     monkeypatch.setattr(cli_main, "build_parser", build)
 
 
