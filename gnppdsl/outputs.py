@@ -18,7 +18,6 @@ Errors are `UserError`s that name the option (`--json res.json: ...`), exit 2.
 from __future__ import annotations
 
 import os
-import secrets
 import stat
 from contextlib import contextmanager
 from pathlib import Path
@@ -86,7 +85,7 @@ def atomic_open(path: str | Path, what: str, binary: bool = False, newline: str 
     parent = p.parent if str(p.parent) else Path(".")
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
     for _ in range(100):
-        tmp = parent / f".{p.name[:200]}.{secrets.token_hex(6)}.tmp"
+        tmp = parent / f".{p.name[:200]}.{os.urandom(6).hex()}.tmp"
         try:
             fd = os.open(tmp, flags, mode)
             break

@@ -18,16 +18,18 @@ an unknown version is refused with a clear message instead of being misread.
 from __future__ import annotations
 
 import json
-import sqlite3
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import TYPE_CHECKING, Any, Iterable, Iterator
 
 from gnppdsl.compile.factors import FactorInstance
 from gnppdsl.conflicts.semantic import MATCH_STATS, SemanticGraph, contains, isomorphic, monomorphism, semantic_graph
 from gnppdsl.errors import UserError
+
+if TYPE_CHECKING:
+    import sqlite3       # imported where used: only a database with a file needs it
 
 SCHEMA_VERSION = 1
 #: SQLite `PRAGMA application_id` of a gnpp subgraph database ("GNPP"); `user_version` holds
@@ -101,6 +103,7 @@ def _identify(path: Path) -> bool:
 
 def _legacy_schema(path: Path) -> bool:
     """An unstamped file whose tables are exactly `_SCHEMA`'s (read-only connection)."""
+    import sqlite3
     from urllib.parse import quote
 
     want = {}
@@ -149,6 +152,8 @@ def _journal_mode_wal(conn: sqlite3.Connection, deadline: float) -> None:
     documentation), and it does so when several processes open a new file at the same instant
     (two of eight openers failed with "database is locked" in CI). Retried with a short back-off
     until the same 30 s the busy timeout allows elsewhere."""
+    import sqlite3
+
     delay = 0.005
     while True:
         try:
@@ -182,6 +187,8 @@ class SubgraphDatabase:
 
     # ---- persistence -------------------------------------------------------------------------
     def _open(self, path: Path) -> None:
+        import sqlite3
+
         fresh = _identify(path)                 # refuses a foreign file before any write
         try:
             conn = sqlite3.connect(str(path), timeout=30.0)

@@ -8,7 +8,6 @@ prints it (exit code 2, no traceback).
 """
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Iterable
@@ -225,6 +224,8 @@ def did_you_mean(name: str, candidates: Iterable[str], prefix: str = "") -> str 
 
 @lru_cache(maxsize=4096)
 def _did_you_mean(name: str, cands: tuple[str, ...], prefix: str = "") -> str | None:
+    import difflib      # here: only a misspelt name needs it (not every `gnpp solve`'s start)
+
     close = difflib.get_close_matches(name, cands, n=2, cutoff=0.6)
     if not close:
         lowered = {c.lower(): c for c in cands}

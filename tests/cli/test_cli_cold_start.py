@@ -36,7 +36,7 @@ def test_a_solve_imports_no_other_sub_command(tmp_path):
     compile, check) for any command."""
     code = ("import sys, json\nfrom gnppdsl.cli.main import main\n"
             "code = main(sys.argv[1:])\n"
-            "print(json.dumps(sorted(m for m in sys.modules if m.startswith('gnppdsl'))))\n"
+            "print(json.dumps(sorted(sys.modules)))\n"
             "sys.exit(code)\n")
     p = _python(code, None, "solve", str(P3), "--quiet", "--json", str(tmp_path / "r.json"))
     assert p.returncode == 0, p.stderr
@@ -45,6 +45,19 @@ def test_a_solve_imports_no_other_sub_command(tmp_path):
     others = {m for _, (m, _) in cli_main.SUBCOMMANDS.items()} - {"gnppdsl.cli.solve_cmd"}
     assert mods & (others | {"gnppdsl.cli.sweep", "gnppdsl.cli.table1"}) == set()
     assert not any(m.startswith("gnppdsl.view") for m in mods)
+    # what only some runs need: a database file (--db), a misspelt name's suggestions
+    assert mods & {"sqlite3", "difflib"} == set()
+
+
+def test_the_package_and_the_parser_do_not_import_dataclasses():
+    """`gnpp --help`: the code cache waits for `dataclasses` to be imported by what needs it."""
+    code = ("import sys\nimport gnppdsl.cli.main as m\nm.build_parser('')\n"
+            "assert 'dataclasses' not in sys.modules, 'imported'\n"
+            "import dataclasses\nfrom gnppdsl import classcode\n"
+            "assert dataclasses.exec is classcode.cached_exec\n"
+            "assert classcode._WhenImported not in sys.meta_path\n")
+    p = _python(code)
+    assert p.returncode == 0, p.stderr
 
 
 def test_the_command_is_the_first_word_that_is_not_an_option():
@@ -182,6 +195,10 @@ def test_cached_dataclass_methods_equal_compiled_ones(tmp_path):
     assert not plain["installed"] and off["installed"] and cold["installed"] and warm["installed"]
     assert off["stats"]["misses"] > 0 and cold["stats"]["misses"] > 0
     assert warm["stats"]["misses"] == 0 and warm["stats"]["hits"] > 20
+    from gnppdsl import classcode                        # the warm run folded the appended
+    (f,) = list((tmp_path / "cc").iterdir())             # records into one snapshot
+    (snapshot,) = list(classcode._records(f.read_bytes()))
+    assert type(snapshot) is dict and len(snapshot) > 20
     for r in (plain, off, cold, warm):
         r.pop("stats"), r.pop("installed")
     assert plain == off == cold == warm
