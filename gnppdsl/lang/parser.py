@@ -682,7 +682,7 @@ def _tags_hint(text: str, pos: int | None) -> str | None:
 # ----------------------------------------------------------------------------------------
 # AST cache: unchanged files (the standard library above all) are not re-parsed
 # ----------------------------------------------------------------------------------------
-_CACHE_VERSION = "2"          # 2: JSON (gnppdsl.lang.ast_json) instead of pickle
+_CACHE_VERSION = "3"          # 2: JSON (gnppdsl.lang.ast_json) instead of pickle; 3: with layout warnings
 
 
 @lru_cache(maxsize=1)
@@ -703,12 +703,13 @@ def _cache_dir() -> Path | None:
 def _grammar_signature() -> str:
     import hashlib
 
-    from gnppdsl.lang import ast_json, span
+    from gnppdsl.lang import ast_json, lint, span
     from gnppdsl.resources import grammar_dir
 
     h = hashlib.sha1(_CACHE_VERSION.encode())
     h.update((grammar_dir() / "pntc.lark").read_bytes())
-    for module in (__file__, ast.__file__, span.__file__, ast_json.__file__):   # Span lives in span
+    # Span lives in span; the cached layout warnings are lint's
+    for module in (__file__, ast.__file__, span.__file__, ast_json.__file__, lint.__file__):
         h.update(Path(module).read_bytes())
     return h.hexdigest()
 
@@ -719,8 +720,9 @@ def _cache_key(text: str, path: str) -> str:
     return hashlib.sha1(f"{_grammar_signature()}\0{path}\0{text}".encode()).hexdigest()
 
 
-def _cache_load(key: str) -> ast.FileAst | None:
-    """A cached tree, or None. JSON only (`ast_json`): a planted file can at worst be a miss."""
+def _cache_load(key: str) -> tuple[ast.FileAst, list] | None:
+    """A cached tree and its layout warnings, or None. JSON only (`ast_json`): a planted file
+    can at worst be a miss."""
     d = _cache_dir()
     if d is None:
         return None
@@ -728,7 +730,7 @@ def _cache_load(key: str) -> ast.FileAst | None:
     from gnppdsl.lang import ast_json
 
     try:
-        return ast_json.loads(decode_utf8(read_bytes(d / f"{key}.json")))
+        return ast_json.loads_entry(decode_utf8(read_bytes(d / f"{key}.json")))
     except (InputError, ValueError, TypeError, RecursionError):
         return None
 
@@ -740,7 +742,7 @@ def _cache_load(key: str) -> ast.FileAst | None:
 MAX_CACHED_CHARS = 128 * 1024
 
 
-def _cache_store(key: str, tree: ast.FileAst, size: int = 0) -> None:
+def _cache_store(key: str, tree: ast.FileAst, layout: list, size: int = 0) -> None:
     d = _cache_dir()
     if d is None or size > MAX_CACHED_CHARS:
         return
@@ -749,7 +751,7 @@ def _cache_store(key: str, tree: ast.FileAst, size: int = 0) -> None:
     from gnppdsl.outputs import write_atomic
 
     try:
-        write_atomic(d / f"{key}.json", ast_json.dumps(tree), "parse cache", mode=0o600)
+        write_atomic(d / f"{key}.json", ast_json.dumps_entry(tree, layout), "parse cache", mode=0o600)
     except (UserError, ValueError, RecursionError):   # caching is an optimisation only
         pass
 
@@ -758,22 +760,26 @@ def parse_text(text: str, path: str, reporter: Reporter) -> ast.FileAst | None:
     """Parse one file's text; syntax errors go to `reporter` and the result is None."""
     reporter.sources.add(path, text)
     key = _cache_key(text, path)
-    result = _cache_load(key)
-    if result is None:
+    hit = _cache_load(key)
+    if hit is not None:
+        result, layout = hit
+    else:
         result = _parse_text(text, path, reporter)
-        if result is not None:
-            _cache_store(key, result, len(text))
-    if result is not None:
-        _report_layout(result, text, reporter)
+        if result is None:
+            return None
+        from gnppdsl.lang.lint import layout_warnings
+
+        layout = layout_warnings(result, text)
+        _cache_store(key, result, layout, len(text))
+    _report_layout(layout, reporter)
     return result
 
 
-def _report_layout(file_ast: ast.FileAst, text: str, reporter: Reporter) -> None:
+def _report_layout(layout: list, reporter: Reporter) -> None:
     """Layout warnings (`gnppdsl.lang.lint`), once per place even if a file is parsed again."""
     from gnppdsl.lang.diagnostics import Diagnostic
-    from gnppdsl.lang.lint import layout_warnings
 
-    for span, message, hint in layout_warnings(file_ast, text):
+    for span, message, hint in layout:
         reporter.add(Diagnostic(message, span, "layout", hint, severity="warning"))
 
 

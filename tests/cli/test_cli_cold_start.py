@@ -231,3 +231,27 @@ def test_a_directory_others_can_write_to_is_not_used(tmp_path):
     r = _classes(str(d))
     assert r["stats"]["hits"] == 0
     assert list(real.iterdir()) == []
+
+
+# ---- the parse cache holds the layout warnings --------------------------------------------
+def test_a_cached_parse_reports_its_layout_warnings_without_the_walk(tmp_path, monkeypatch):
+    """Before, every parse (cached ones too) walked the tree for layout warnings
+    (`lint.layout_warnings`); now the cache entry holds them."""
+    from gnppdsl.lang import lint
+    from gnppdsl.lang import parser as parser_mod
+    from gnppdsl.lang.diagnostics import Reporter
+
+    monkeypatch.setattr(parser_mod, "_cache_dir", lambda: tmp_path)
+    text = ("domain d\ncontinuous p : R[2] tags object\ntemplate t(lo: R, hi: R) tags object {\n"
+            "  p[0] >= lo\n  -p[1] >= -hi\n}\n")          # tests/lang/test_lang_lint.py's case
+
+    def parse():
+        r = Reporter()
+        tree = parser_mod.parse_text(text, "t.pntc", r)
+        return tree, [(str(d.span), d.message, d.hint) for d in r.diagnostics]
+    tree, first = parse()                        # a miss: parsed, linted, stored
+    assert tree is not None and len(first) == 1 and "'-'" in first[0][1]
+    assert len(list(tmp_path.iterdir())) == 1
+    monkeypatch.setattr(lint, "layout_warnings", lambda *a: pytest.fail("walked again"))
+    again, second = parse()                      # a hit: the stored warnings
+    assert again == tree and second == first
