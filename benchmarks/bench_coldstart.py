@@ -21,6 +21,9 @@ teardown included) and splits it:
 package (wall microseconds of one process, for orientation: the CPU split above is what counts).
 
 Runs alternate tree by tree (A B A B ...); the machine is shared, so read medians and ratios.
+Each tree's bytecode is compiled first (`compileall`, as `make setup` does: with
+PYTHONDONTWRITEBYTECODE a process would otherwise compile every changed module again), and one
+unmeasured run fills the caches (parse cache, template Functions, dataclass code).
 
     python benchmarks/bench_coldstart.py [PROBLEM.pntc ...] [--runs 10] [--against DIR]
         [--importtime]    # DIR: another tree, e.g. `git archive main | tar -x -C DIR`
@@ -134,6 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.against is not None:
         trees = {"base": args.against.resolve(), "new": ROOT}
     for t in trees.values():                      # bytecode and the function store warm
+        subprocess.run([sys.executable, "-m", "compileall", "-q", "gnppdsl"], cwd=t, check=True,
+                       env=dict(os.environ, PYTHONPATH=str(t)))
         one_run(t, cmd, scratch)
     rows: dict[str, list[dict]] = {k: [] for k in trees}
     for i in range(args.runs):

@@ -74,8 +74,14 @@ def main(argv: list[str] | None = None) -> int:
     _command = None
     code = _main(argv)
     if argv is None:
-        _leave_now(code, _command in QUICK_EXIT)
+        _leave_now(code, _command in QUICK_EXIT and not _observed())
     return code
+
+
+def _observed() -> bool:
+    """Whether a profiler or tracer runs (`python -m cProfile`, coverage.py): they write what
+    they gathered at the interpreter's exit, so the process must end normally."""
+    return sys.getprofile() is not None or sys.gettrace() is not None
 
 
 _command: str | None = None     # the command `_main` ran (for `main`'s quick exit)

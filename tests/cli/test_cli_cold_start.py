@@ -95,6 +95,8 @@ def test_the_program_leaves_without_teardown_after_a_solve(monkeypatch):
     command = "solve"
     exits.clear()
     assert cli_main.main(["solve", "x"]) == 0 and exits == []
+    monkeypatch.setattr(cli_main.sys, "getprofile", lambda: object())   # under a profiler:
+    assert cli_main.main() == 0 and exits == []                          # it writes at exit
 
 
 def test_a_solve_process_writes_everything_before_it_leaves(tmp_path):
