@@ -43,8 +43,8 @@ _CHILDREN: dict[type, tuple[str, ...] | None] = {}
 
 def _children(cls: type) -> tuple[str, ...] | None:
     """The fields of an AST node type to walk, once per type. Why: `dataclasses.fields` per
-    node was most of the walk, and the walk runs on every parse, cached ones included (the Lab
-    domain's five files: ~4,800 nodes, 10-30 ms CPU of each `gnpp solve`'s start)."""
+    node was most of the walk (the Lab domain's five files: ~4,800 nodes, 10-30 ms CPU); the
+    parse cache keeps each file's warnings, so a cached parse does not walk at all."""
     names = _CHILDREN.get(cls, ())
     if names == ():
         names = (tuple(f.name for f in dataclasses.fields(cls) if f.name != "span")

@@ -105,7 +105,8 @@ def test_a_solve_process_writes_everything_before_it_leaves(tmp_path):
     code = ("import atexit, sys\nfrom gnppdsl.cli.main import main\n"
             "atexit.register(lambda: print('TEARDOWN', flush=True))\n"
             "sys.argv = ['gnpp', *sys.argv[1:]]\nsys.exit(main())\n")
-    p = _python(code, None, "solve", str(P3), "--quiet", "--json", str(out))
+    buffered = {"PYTHONUNBUFFERED": ""}                 # stdout a buffered pipe: flushed?
+    p = _python(code, buffered, "solve", str(P3), "--quiet", "--json", str(out))
     assert p.returncode == 0, p.stderr
     assert "solved" in p.stdout and "TEARDOWN" not in p.stdout
     assert json.loads(out.read_text())["status"] == "solved"
