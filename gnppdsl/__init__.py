@@ -33,12 +33,6 @@ from gnppdsl.lazy import lazy_getattr as _lazy_getattr
 # before numpy or casadi are first imported (it has no effect after).
 _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-# the compiled code of generated dataclass methods from a per-user cache (`gnppdsl.classcode`):
-# before the first dataclass of the package is created
-from gnppdsl import classcode as _classcode  # noqa: E402
-
-_classcode.install()
-
 __version__ = "0.1.0"
 
 __all__ = ["solve_problem", "load_and_compile", "SolveOptions", "Result", "__version__"]

@@ -14,6 +14,10 @@ after compiling the text: the same functions, names, defaults, annotations and l
 (`tests/test_classcode.py` compares them with a normal creation). A text not in the table is
 compiled as before and appended to the table's file, so the next process finds it.
 
+Who: only the `gnpp` program (`cli.main.main()` run without arguments) installs it; importing
+`gnppdsl` as a library leaves `dataclasses` alone (the patch would reach the user's own
+classes too).
+
 Where: `GNPP_CODE_CACHE` (a directory; `0` or `off`: no cache), else
 `$XDG_CACHE_HOME/gnppdsl/classcode` (default `~/.cache/...`), one file per Python build
 (`sys.implementation.cache_tag` and `sys.version`: marshalled code is only valid for the

@@ -72,6 +72,12 @@ def main(argv: list[str] | None = None) -> int:
     (`_leave_now`)."""
     global _command
     _command = None
+    if argv is None:
+        # the `gnpp` program's own process: generated dataclass methods from the per-user code
+        # cache (`gnppdsl.classcode`). Not for a library user's process: the patch reaches every
+        # dataclass created after it, theirs too.
+        from gnppdsl import classcode
+        classcode.install()
     code = _main(argv)
     if argv is None:
         _leave_now(code, _command in QUICK_EXIT and not _observed())

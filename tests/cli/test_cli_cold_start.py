@@ -53,11 +53,33 @@ def test_the_package_and_the_parser_do_not_import_dataclasses():
     """`gnpp --help`: the code cache waits for `dataclasses` to be imported by what needs it."""
     code = ("import sys\nimport gnppdsl.cli.main as m\nm.build_parser('')\n"
             "assert 'dataclasses' not in sys.modules, 'imported'\n"
-            "import dataclasses\nfrom gnppdsl import classcode\n"
+            "from gnppdsl import classcode\nclasscode.install()\n"
+            "assert 'dataclasses' not in sys.modules, 'imported by install'\n"
+            "import dataclasses\n"
             "assert dataclasses.exec is classcode.cached_exec\n"
             "assert classcode._WhenImported not in sys.meta_path\n")
     p = _python(code)
     assert p.returncode == 0, p.stderr
+
+
+def test_only_the_gnpp_program_installs_the_code_cache():
+    """A library user's process (`import gnppdsl`, the API, `main([...])` from their code) keeps
+    plain `dataclasses`: the patch would reach their own classes; `gnpp` itself (`main()`)
+    installs it."""
+    lib = ("import sys, dataclasses, gnppdsl, gnppdsl.cli.main as m\n"
+           "from gnppdsl import load_and_compile\n"
+           f"m.main(['check', {str(P3)!r}])\n"
+           "assert 'exec' not in vars(dataclasses), 'patched'\n")
+    p = _python(lib)
+    assert p.returncode == 0, p.stderr + p.stdout
+    prog = ("import sys, dataclasses, gnppdsl.cli.main as m\n"
+            f"sys.argv = ['gnpp', 'check', {str(P3)!r}]\n"
+            "code = m.main()\n"
+            "from gnppdsl import classcode\n"
+            "assert vars(dataclasses).get('exec') is classcode.cached_exec, 'not installed'\n"
+            "sys.exit(code)\n")
+    p = _python(prog)
+    assert p.returncode == 0, p.stderr + p.stdout
 
 
 def test_the_command_is_the_first_word_that_is_not_an_option():
@@ -122,8 +144,8 @@ from typing import Any
 if len(sys.argv) > 1:                  # the reference: dataclasses alone, no gnppdsl
     classcode = None
 else:
-    import gnppdsl
     from gnppdsl import classcode
+    classcode.install()                # as the `gnpp` program does
 
 @dataclass(frozen=True)
 class A:
