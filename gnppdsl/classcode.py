@@ -107,21 +107,14 @@ def _read(path: Path) -> dict[str, CodeType]:
 
 
 def _write(path: Path, table: dict[str, CodeType]) -> None:
-    import tempfile
+    """`table` as the file's one snapshot record (`outputs.write_atomic`: a reader sees the old
+    file or the new one, never a mix)."""
+    from gnppdsl.errors import UserError
+    from gnppdsl.outputs import write_atomic
 
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(_record(table))
-            os.replace(tmp, path)
-        except BaseException:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
-            raise
-    except (OSError, ValueError):
+        write_atomic(path, _record(table), "code cache", mode=0o600)
+    except (UserError, OSError, ValueError):
         pass                               # not compacted: read record by record next time
 
 
