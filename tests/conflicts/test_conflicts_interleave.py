@@ -11,34 +11,17 @@ Oracles independent of the stretching code:
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
-from gnppdsl.compile.semantics import successor
 from gnppdsl.conflicts.mapping import conflict_str, to_partial_states
 from gnppdsl.conflicts.interleave import bridges, chain_equality, contracted, merged, stretched
 from gnppdsl.logic.validate import find_sequence
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
-from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.timing import result_states
 from gnppdsl.solve.plan_graph import plan_graph
 
-FIELD = Path(__file__).resolve().parents[2] / "examples" / "field"
-
-
-@pytest.fixture(scope="module")
-def field4():
-    return load_and_compile(str(FIELD / "field4.pntc"))
-
-
-def states_of(compiled, names):
-    task = compiled.factory.task
-    states = [tuple(task.initial)]
-    for n in names:
-        op = next(o for o in task.operators if o.name == n)
-        states.append(tuple(successor(task, states[-1], op)))
-    return states
 
 
 FAR_PICK = ["pick(o3, arm1, station_n)", "place(o3, arm1, station_s)", "pick(o1, mm, site_a)",
@@ -49,7 +32,7 @@ def far_pick_subgraph(compiled):
     """M: mm picks o1 at site_a two steps after the start with its base parked since the
     initial state (home pose, parked chain, o1 at its scene pose, the pick, the grasp), and
     places it at station_n two steps later without driving."""
-    fs = compiled.factory.factors(states_of(compiled, FAR_PICK))
+    fs = compiled.factory.factors(result_states(compiled.task, FAR_PICK))
 
     def keep(f):
         if f.rule == "parked" and f.template == "field.parked":
@@ -63,7 +46,7 @@ def far_pick_subgraph(compiled):
 
 
 def test_chain_equalities_are_the_parked_base_and_the_staying_object(field4):
-    fs = field4.factory.factors(states_of(field4, FAR_PICK))
+    fs = field4.factory.factors(result_states(field4.task, FAR_PICK))
     chains = {(f.rule, f.template) for f in fs if chain_equality(f)}
     assert chains == {("parked", "field.parked"), ("stay", "manipulation.same")}
     # a pick, the trajectory's ends, its velocity bound and the parked path do not compose
@@ -104,7 +87,7 @@ def test_contraction_and_stretching_of_a_parked_base(field4):
 
 def test_a_transition_with_a_non_chain_factor_is_not_stretched(field4):
     M = far_pick_subgraph(field4)
-    fs = field4.factory.factors(states_of(field4, FAR_PICK))
+    fs = field4.factory.factors(result_states(field4.task, FAR_PICK))
     # add the velocity bound of mm's motion 0 -> 1 (a trajectory at step 0): no longer stretchable
     extra = [f for f in fs if f.rule == "motion" and f.template == "manipulation.velocity"
              and "mm" in f.label and f.step == 0]
@@ -124,9 +107,9 @@ def test_a_stretched_instance_forbids_the_infeasible_interleaving_not_the_drive(
     base = [f for f in M if f.step <= 3 and not (f.rule in ("parked", "switch") and f.step == 3)
             and not (f.rule == "switch" and f.step == 4)]
     out = stretched(base, max_length=10)
-    parked = states_of(field4, ["pick(o3, arm1, station_n)", "place(o3, arm1, station_s)",
+    parked = result_states(field4.task, ["pick(o3, arm1, station_n)", "place(o3, arm1, station_s)",
                                 "pick(o2, arm1, station_s)", "pick(o1, mm, site_a)"])
-    drive = states_of(field4, ["pick(o3, arm1, station_n)", "start_move(mm)", "end_move(mm)",
+    drive = result_states(field4.task, ["pick(o3, arm1, station_n)", "start_move(mm)", "end_move(mm)",
                                "pick(o1, mm, site_a)"])
     assert any(find_sequence(parked, s) is not None for s in out)
     assert all(find_sequence(drive, s) is None for s in out)

@@ -8,20 +8,17 @@ subgraph the loop learns, as field3/field4's conflict #4 prints it) and the NLP 
 relaxed graph of the interleaved plan (infeasible: the forbidden plan is rightly forbidden)."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
-from gnppdsl.compile.semantics import successor
 from gnppdsl.conflicts.interleave import bridges, chain_link, stretched
 from gnppdsl.conflicts.mapping import to_partial_states
 from gnppdsl.logic.validate import find_sequence
 from gnppdsl.nlp.feasibility import FeasibilitySolver, SolverOptions
 from gnppdsl.nlp.graph import GraphNLP
 from gnppdsl.solve.plan_graph import plan_graph
-from gnppdsl.solve.compiled import load_and_compile
+from gnppdsl.solve.timing import result_states
 
-FIELD = Path(__file__).resolve().parents[2] / "examples" / "field"
 
 # mm drives first (from its initial base pose it reaches no site), picks o1 at site_a, ...
 DIRECT = ["start_move(mm)", "end_move(mm)", "pick(o1, mm, site_a)", "place(o1, mm, station_n)"]
@@ -33,24 +30,10 @@ DRIVE = ["start_move(mm)", "end_move(mm)", "pick(o1, mm, site_a)",
          "start_move(mm)", "end_move(mm)", "place(o1, mm, station_n)"]
 
 
-@pytest.fixture(scope="module")
-def field4():
-    return load_and_compile(str(FIELD / "field4.pntc"))
-
-
-def states_of(compiled, names):
-    task = compiled.factory.task
-    states = [tuple(task.initial)]
-    for n in names:
-        op = next(o for o in task.operators if o.name == n)
-        states.append(tuple(successor(task, states[-1], op)))
-    return states
-
-
 def pick_place(compiled):
     """M on the DIRECT plan: o1 at its scene pose, the pick (2 -> 3), the grasp, the parked base
     (3 -> 4), the place (3 -> 4), o1 on station_n."""
-    states = states_of(compiled, DIRECT)
+    states = result_states(compiled.task, DIRECT)
     fs = compiled.factory.factors(states)
     keep = {("start", 2), ("switch", 2), ("held", 3), ("switch", 3), ("on", 4)}
     M = [f for f in fs if ("o1" in f.label and (f.rule, f.step) in keep)
@@ -82,7 +65,7 @@ def test_the_place_transition_is_stretched_with_the_held_object_and_the_parked_b
 
 def test_stretched_instances_forbid_actions_between_pick_and_place_not_a_drive(field4):
     states, M = pick_place(field4)
-    between, drive = states_of(field4, BETWEEN), states_of(field4, DRIVE)
+    between, drive = result_states(field4.task, BETWEEN), result_states(field4.task, DRIVE)
     before = stretched(M, max_length=12)
     assert all(find_sequence(between, s) is None for s in before)     # what the loop relearned
     out = stretched(M, max_length=12, stutter=stutter_of(field4, states))
@@ -100,7 +83,7 @@ def test_the_forbidden_interleaving_is_infeasible(field4):
     assert not solver.solve(GraphNLP(list(M)), seed=0).feasible
 
     def relaxed(names):
-        return GraphNLP([f for f in plan_graph(field4.factory, states_of(field4, names)).factor_instances
+        return GraphNLP([f for f in plan_graph(field4.factory, result_states(field4.task, names)).factor_instances
                          if not f.tags & {"collision", "traj"}])
     assert not solver.solve(relaxed(BETWEEN), seed=0).feasible
     assert solver.solve(relaxed(DRIVE), seed=0).feasible
